@@ -1,0 +1,50 @@
+"""Small numerical helpers shared by the modules (not public API)."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+from jaxtyping import Array, Float, Int
+
+
+def segment_sum_rows(
+    data: Float[Array, "*batch N d"], segment_ids: Int[Array, " N"], num_segments: int
+) -> Float[Array, "*batch S d"]:
+    """out[..., s, :] = sum over n with ids[n] == s of data[..., n, :]."""
+    moved = jnp.moveaxis(data, -2, 0)
+    out = jax.ops.segment_sum(moved, segment_ids, num_segments=num_segments)
+    return jnp.moveaxis(out, 0, -2)
+
+
+def segment_sum_scalars(
+    data: Float[Array, "*batch N"], segment_ids: Int[Array, " N"], num_segments: int
+) -> Float[Array, "*batch S"]:
+    """out[..., s] = sum over n with ids[n] == s of data[..., n]."""
+    moved = jnp.moveaxis(data, -1, 0)
+    out = jax.ops.segment_sum(moved, segment_ids, num_segments=num_segments)
+    return jnp.moveaxis(out, 0, -1)
+
+
+def safe_norm(x: Float[Array, "*batch d"], axis: int = -1) -> Float[Array, "*batch"]:
+    """Euclidean norm whose gradient at the zero vector is 0 instead of NaN."""
+    sq = jnp.sum(x * x, axis=axis)
+    positive = sq > 0
+    return jnp.where(positive, jnp.sqrt(jnp.where(positive, sq, 1)), 0)
+
+
+def safe_normalize(x: Float[Array, "*batch d"], axis: int = -1) -> Float[Array, "*batch d"]:
+    """x / ||x||, and the zero vector (with zero gradient) where ||x|| == 0."""
+    n = safe_norm(x, axis=axis)
+    n = jnp.expand_dims(n, axis)
+    return jnp.where(n > 0, x / jnp.where(n > 0, n, 1), 0)
+
+
+def safe_divide(num: Array, den: Array) -> Array:
+    """num / den where den != 0, else 0 (double ``where``: no NaN in gradients)."""
+    ok = den != 0
+    return jnp.where(ok, num / jnp.where(ok, den, 1), 0)
+
+
+def cast_like(x: Array, like: Array) -> Array:
+    """Cast ``x`` to the floating dtype of ``like`` (integer arrays included)."""
+    return jnp.asarray(x).astype(jnp.result_type(like))

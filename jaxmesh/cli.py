@@ -1,0 +1,132 @@
+"""The ``jaxmesh`` command line (also ``python -m jaxmesh``).
+
+Each subcommand is a pair ``(configure(parser), run(args) -> exit code)``
+registered in :data:`COMMANDS`; later capabilities add their own pair.
+Conventions, as for any Unix tool: results on stdout (``--json`` for machine
+output, one JSON object per line), diagnostics on stderr prefixed with
+``jaxmesh:``, exit status 0 on success, 1 on a bad input or failed operation,
+2 on a usage error.  Output files are never overwritten without ``--force``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import warnings
+from typing import Callable
+
+__all__ = ["main", "COMMANDS"]
+
+
+class CLIError(Exception):
+    """An error to report as ``jaxmesh: error: ...`` with exit status 1."""
+
+
+def _mesh_source(args) -> list[tuple[str, Callable]]:
+    """(label, loader) for each mesh named by MESH arguments or --sample."""
+    from . import data
+    from .io import load
+
+    out = []
+    for name in args.sample or []:
+        out.append((f"sample:{name}", lambda name=name: data.load_sample(name)))
+    for path in args.mesh or []:
+        out.append((path, lambda path=path: load(path)))
+    if not out:
+        raise CLIError("no mesh given: name a MESH file or --sample NAME "
+                       f"(samples: {', '.join(sorted(data.SAMPLES))})")
+    return out
+
+
+# ---------------------------------------------------------------- info
+
+
+def _configure_info(p: argparse.ArgumentParser) -> None:
+    from . import data
+
+    p.add_argument("mesh", nargs="*", metavar="MESH", help="mesh file(s): OBJ, PLY, OFF, STL")
+    p.add_argument("--sample", action="append", choices=sorted(data.SAMPLES),
+                   help="use a sample mesh shipped with jaxmesh (repeatable)")
+    p.add_argument("--json", action="store_true", help="one JSON object per mesh, per line")
+
+
+def _format_value(v) -> str:
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    if v is None:
+        return "undefined"
+    if isinstance(v, float):
+        return f"{v:.6g}"
+    return str(v)
+
+
+def _run_info(args) -> int:
+    from .topology import mesh_info
+
+    for i, (label, loader) in enumerate(_mesh_source(args)):
+        info = {"path": label, **mesh_info(loader())}
+        if args.json:
+            print(json.dumps(info), flush=True)
+        else:
+            if i:
+                print()
+            print(label)
+            width = max(len(k) for k in info)
+            for key, value in info.items():
+                if key != "path":
+                    print(f"  {key.replace('_', ' '):<{width}}  {_format_value(value)}")
+    return 0
+
+
+COMMANDS: dict[str, tuple[str, Callable, Callable]] = {
+    "info": ("counts, topology and geometry summary of a mesh", _configure_info, _run_info),
+}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from . import __version__
+
+    parser = argparse.ArgumentParser(
+        prog="jaxmesh",
+        description="Differentiable triangle-mesh processing (JAX).",
+    )
+    parser.add_argument("--version", action="version", version=f"jaxmesh {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name, (help_text, configure, run) in COMMANDS.items():
+        p = sub.add_parser(name, help=help_text, description=help_text)
+        configure(p)
+        p.set_defaults(_run=run)
+    return parser
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    print(f"jaxmesh: warning: {message}", file=sys.stderr)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "_run", None):
+        parser.print_help(sys.stderr)
+        return 2
+    from .io import MeshFileError
+
+    warnings.showwarning = _show_warning
+    try:
+        return int(args._run(args) or 0)
+    except (CLIError, MeshFileError, FileExistsError, ValueError) as err:
+        print(f"jaxmesh: error: {err}", file=sys.stderr)
+        return 1
+    except BrokenPipeError:  # e.g. `jaxmesh info --json a b | head -1`
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return 0
+    except KeyboardInterrupt:
+        print("jaxmesh: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

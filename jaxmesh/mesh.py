@@ -1,0 +1,265 @@
+"""The :class:`Mesh` pytree: vertex positions plus host-built topology.
+
+A mesh M = (V, E, T) with m = |V| vertices, n = |T| triangles and |E| undirected
+edges.  Everything discrete (edge lists, degrees, which edge lies opposite which
+corner) is computed once on the host with numpy in :meth:`Mesh.from_arrays` and
+stored as integer arrays, so that every operator is a pure function of the mesh
+that ``jax.jit`` / ``jax.vmap`` / ``jax.grad`` can trace.  Counts come from array
+shapes and are therefore static under ``jit``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import warnings
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Float, Int
+
+__all__ = ["Mesh", "MeshWarning", "build_topology"]
+
+
+class MeshWarning(UserWarning):
+    """Emitted for inputs that are accepted but deserve attention
+    (isolated vertices, zero-area faces, polygons that were triangulated)."""
+
+
+def build_topology(faces: np.ndarray, num_vertices: int) -> dict[str, np.ndarray]:
+    """Host-side topology of a triangle list (numpy, run once per mesh).
+
+    Returns int32 arrays:
+
+    * ``edges`` (E, 2): unique undirected edges with ``edges[:, 0] < edges[:, 1]``,
+      sorted lexicographically;
+    * ``face_edges`` (F, 3): ``face_edges[f, k]`` is the edge *opposite* corner k of
+      face f, i.e. the edge (faces[f, k+1], faces[f, k+2]) (indices mod 3);
+    * ``src``, ``dst``, ``edge_of`` (2E,): the directed edge list (both directions of
+      every edge) sorted by ``(src, dst)``; ``edge_of`` maps a directed edge to its
+      undirected edge;
+    * ``degree`` (V,): number of distinct neighbours d_i.
+    """
+    f = np.asarray(faces, dtype=np.int64)
+    m = int(num_vertices)
+    a = f[:, [1, 2, 0]]
+    b = f[:, [2, 0, 1]]
+    lo = np.minimum(a, b)
+    hi = np.maximum(a, b)
+    keys, inverse = np.unique((lo * m + hi).ravel(), return_inverse=True)
+    edges = np.stack([keys // m, keys % m], axis=1)
+    num_edges = len(edges)
+    src = np.concatenate([edges[:, 0], edges[:, 1]])
+    dst = np.concatenate([edges[:, 1], edges[:, 0]])
+    edge_of = np.concatenate([np.arange(num_edges), np.arange(num_edges)])
+    order = np.lexsort((dst, src))
+    degree = np.bincount(src, minlength=m)
+    as32 = lambda x: np.ascontiguousarray(x, dtype=np.int32)  # noqa: E731
+    return {
+        "edges": as32(edges.reshape(-1, 2)),
+        "face_edges": as32(inverse.reshape(-1, 3)),
+        "src": as32(src[order]),
+        "dst": as32(dst[order]),
+        "edge_of": as32(edge_of[order]),
+        "degree": as32(degree),
+    }
+
+
+def _validate_vertices(vertices) -> np.ndarray:
+    v = np.asarray(vertices)
+    if v.dtype == object:
+        raise ValueError("vertices must be a numeric array, got ragged/object data")
+    if v.ndim != 2 or v.shape[1] != 3:
+        raise ValueError(f"vertices must have shape (m, 3), got {v.shape}")
+    if v.shape[0] == 0:
+        raise ValueError("empty mesh: no vertices")
+    if not np.issubdtype(v.dtype, np.number) or np.issubdtype(v.dtype, np.complexfloating):
+        raise ValueError(f"vertices must be real numbers, got dtype {v.dtype}")
+    if not np.issubdtype(v.dtype, np.floating):
+        v = v.astype(np.float64)
+    bad = ~np.isfinite(v).all(axis=1)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise ValueError(
+            f"vertex {i} has a non-finite coordinate {v[i].tolist()} "
+            f"({int(bad.sum())} non-finite vertices in all)"
+        )
+    return v
+
+
+def _validate_faces(faces, num_vertices: int) -> np.ndarray:
+    f = np.asarray(faces)
+    if f.dtype == object:
+        raise ValueError(
+            "faces are ragged (polygons with different vertex counts); "
+            "only triangles are supported: triangulate first"
+        )
+    if f.ndim != 2:
+        raise ValueError(f"faces must have shape (n, 3), got {f.shape}")
+    if f.shape[0] == 0:
+        raise ValueError("empty mesh: no faces")
+    if f.shape[1] != 3:
+        raise ValueError(
+            f"faces must be triangles, got {f.shape[1]}-gons (shape {f.shape}); "
+            "triangulate first (jaxmesh.load does so with a warning)"
+        )
+    if np.issubdtype(f.dtype, np.floating):
+        if not np.all(np.isfinite(f)) or np.any(f != np.round(f)):
+            raise ValueError("face indices must be integers")
+        f = f.astype(np.int64)
+    if not np.issubdtype(f.dtype, np.integer):
+        raise ValueError(f"face indices must be integers, got dtype {f.dtype}")
+    out = (f < 0) | (f >= num_vertices)
+    if out.any():
+        k = int(np.flatnonzero(out.any(axis=1))[0])
+        raise ValueError(
+            f"face {k} = {f[k].tolist()} has a vertex index out of range "
+            f"[0, {num_vertices})"
+        )
+    repeated = (f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 2] == f[:, 0])
+    if repeated.any():
+        k = int(np.flatnonzero(repeated)[0])
+        raise ValueError(
+            f"face {k} = {f[k].tolist()} repeats a vertex (index-degenerate; "
+            f"{int(repeated.sum())} such faces); remove them before building a Mesh"
+        )
+    if num_vertices >= 2**31 - 1:
+        raise ValueError("meshes with 2**31 or more vertices are not supported")
+    return f.astype(np.int32)
+
+
+def zero_area_faces(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Boolean mask of faces whose area is zero up to rounding.
+
+    A face counts as degenerate when |(b - a) x (c - a)| <= eps * (|b - a|^2 + |c - a|^2),
+    eps the machine epsilon of the vertex dtype: a scale-free test.
+    """
+    v = np.asarray(vertices, dtype=np.float64)
+    eps = np.finfo(np.asarray(vertices).dtype).eps if np.issubdtype(
+        np.asarray(vertices).dtype, np.floating) else np.finfo(np.float64).eps
+    a, b, c = (v[faces[:, k]] for k in range(3))
+    e1, e2 = b - a, c - a
+    cross = np.linalg.norm(np.cross(e1, e2), axis=1)
+    scale = (e1 * e1).sum(1) + (e2 * e2).sum(1)
+    return cross <= eps * scale
+
+
+class Mesh(eqx.Module):
+    """An immutable triangle mesh.
+
+    Attributes (all JAX arrays; leading batch dimensions are allowed on
+    ``vertices`` only, e.g. ``(B, V, 3)`` for B noisy copies of one mesh):
+
+    * ``vertices``: Float[Array, "*batch V 3"] positions v_i;
+    * ``faces``: Int[Array, "F 3"] triangles (vertex indices, int32);
+    * ``edges``: Int[Array, "E 2"] unique undirected edges, i < j;
+    * ``face_edges``: Int[Array, "F 3"] edge opposite each corner;
+    * ``src``, ``dst``, ``edge_of``: Int[Array, "H"], H = 2E, the directed edge list
+      sorted by (src, dst) and the undirected edge of each directed edge;
+    * ``degree``: Int[Array, "V"] vertex degrees d_i.
+
+    Build with :meth:`from_arrays` (or :func:`jaxmesh.load`); move the vertices
+    with :meth:`with_vertices`, which keeps the topology and costs nothing.
+    """
+
+    vertices: Float[Array, "*batch V 3"]
+    faces: Int[Array, "F 3"]
+    edges: Int[Array, "E 2"]
+    face_edges: Int[Array, "F 3"]
+    src: Int[Array, " H"]
+    dst: Int[Array, " H"]
+    edge_of: Int[Array, " H"]
+    degree: Int[Array, " V"]
+
+    @classmethod
+    def from_arrays(cls, vertices, faces, *, dtype=None, warn: bool = True) -> "Mesh":
+        """Validate ``vertices`` (m, 3) and ``faces`` (n, 3) and build the topology.
+
+        Raises ``ValueError`` naming the first offending vertex or face for:
+        wrong shapes, non-triangle faces, non-finite coordinates, indices out
+        of range, index-degenerate faces (a repeated vertex) and empty meshes.
+        Accepted but reported with a :class:`MeshWarning` (when ``warn``):
+        isolated vertices (degree 0; operators leave them in place) and
+        zero-area faces (operators give them zero weight).  Non-manifold
+        edges and vertices are accepted; :func:`jaxmesh.topology.mesh_info`
+        reports them.
+
+        ``dtype`` sets the floating dtype of the vertices (default: the input's,
+        subject to JAX's x64 setting).
+        """
+        v = _validate_vertices(vertices)
+        f = _validate_faces(faces, v.shape[0])
+        topo = build_topology(f, v.shape[0])
+        if warn:
+            isolated = np.flatnonzero(topo["degree"] == 0)
+            if isolated.size:
+                warnings.warn(
+                    f"{isolated.size} isolated vertices (no face uses them; first: "
+                    f"{int(isolated[0])}); operators leave them in place",
+                    MeshWarning,
+                    stacklevel=2,
+                )
+            flat = zero_area_faces(v, f)
+            if flat.any():
+                warnings.warn(
+                    f"{int(flat.sum())} zero-area faces (first: {int(np.flatnonzero(flat)[0])}); "
+                    "they get zero weight in area and cotangent operators",
+                    MeshWarning,
+                    stacklevel=2,
+                )
+        vj = jnp.asarray(v, dtype=dtype)
+        return cls(vertices=vj, faces=jnp.asarray(f), **{k: jnp.asarray(a) for k, a in topo.items()})
+
+    # ------------------------------------------------------------------ counts
+    @property
+    def num_vertices(self) -> int:
+        return self.degree.shape[0]
+
+    @property
+    def num_faces(self) -> int:
+        return self.faces.shape[0]
+
+    @property
+    def num_edges(self) -> int:
+        return self.edges.shape[0]
+
+    @property
+    def batch_shape(self) -> tuple[int, ...]:
+        return tuple(self.vertices.shape[:-2])
+
+    @property
+    def dtype(self):
+        return self.vertices.dtype
+
+    # ------------------------------------------------------------------ moves
+    def with_vertices(self, vertices) -> "Mesh":
+        """Same connectivity, new positions of shape (*batch, V, 3). O(1), jittable."""
+        x = jnp.asarray(vertices)
+        if x.ndim < 2 or x.shape[-2:] != (self.num_vertices, 3):
+            raise ValueError(
+                f"vertices must have shape (*batch, {self.num_vertices}, 3), got {x.shape}"
+            )
+        if not jnp.issubdtype(x.dtype, jnp.floating):
+            raise ValueError(f"vertices must be floating point, got dtype {x.dtype}")
+        return dataclasses.replace(self, vertices=x)
+
+    def astype(self, dtype) -> "Mesh":
+        """The mesh with vertices cast to ``dtype`` (e.g. jnp.float32)."""
+        return dataclasses.replace(self, vertices=self.vertices.astype(dtype))
+
+    def to_trimesh(self):
+        """A ``trimesh.Trimesh`` with the same vertex order (``process=False``)."""
+        import trimesh
+
+        if self.batch_shape:
+            raise ValueError("to_trimesh needs a single mesh, not a batch")
+        return trimesh.Trimesh(
+            np.asarray(self.vertices, dtype=np.float64), np.asarray(self.faces), process=False
+        )
+
+    def __repr__(self) -> str:  # short: the default would print every array
+        batch = f", batch={self.batch_shape}" if self.batch_shape else ""
+        return (
+            f"Mesh(V={self.num_vertices}, F={self.num_faces}, E={self.num_edges}, "
+            f"dtype={self.dtype}{batch})"
+        )

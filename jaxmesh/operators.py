@@ -1,0 +1,159 @@
+"""Graph and mesh operators as segment sums over the directed edge list.
+
+Conventions: ``x`` is a vertex field of shape (*batch, V, d) (the vertex
+positions, or any per-vertex signal); j ~ i runs over the neighbours of i;
+d_i is the degree.  A sum over j ~ i is a gather of x at ``mesh.dst``
+followed by a ``segment_sum`` over ``mesh.src``: O(E), no dense matrix, and
+differentiable.  Isolated vertices (d_i = 0) get 0 from every operator.
+All functions are pure and jittable; :mod:`jaxmesh.sparse` exports the same
+operators as ``scipy.sparse`` matrices for host-side eigensolvers.
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+from jaxtyping import Array, Float
+
+from ._private import safe_divide, segment_sum_rows, segment_sum_scalars
+from .geometry import corner_cotangents, vertex_areas
+from .mesh import Mesh
+
+__all__ = [
+    "degree",
+    "neighbor_sum",
+    "adjacency",
+    "laplacian",
+    "normalized_laplacian",
+    "umbrella",
+    "vertex_gradient",
+    "vertex_laplace",
+    "gradient_magnitude",
+    "cotangent_weights",
+    "laplace_beltrami_weights",
+    "laplace_beltrami",
+    "cotangent_laplacian",
+]
+
+
+def degree(mesh: Mesh, dtype=None) -> Array:
+    """d_i = number of neighbours of v_i (int32, or ``dtype`` if given)."""
+    return mesh.degree if dtype is None else mesh.degree.astype(dtype)
+
+
+def neighbor_sum(mesh: Mesh, x: Float[Array, "*batch V d"]) -> Float[Array, "*batch V d"]:
+    """sum_{j ~ i} x_j, i.e. (A x)_i with A the adjacency matrix."""
+    return segment_sum_rows(x[..., mesh.dst, :], mesh.src, mesh.num_vertices)
+
+
+adjacency = neighbor_sum
+
+
+def laplacian(mesh: Mesh, x: Float[Array, "*batch V d"]) -> Float[Array, "*batch V d"]:
+    """(L x)_i = d_i x_i - sum_{j ~ i} x_j,   L = D - A   (thesis ch.1 eq.6).
+    Symmetric positive semi-definite; constants are in its kernel."""
+    d = degree(mesh, x.dtype)[:, None]
+    return d * x - neighbor_sum(mesh, x)
+
+
+def _inv_sqrt_degree(mesh: Mesh, dtype) -> Array:
+    d = degree(mesh, dtype)
+    return safe_divide(jnp.ones_like(d), jnp.sqrt(d))
+
+
+def normalized_laplacian(mesh: Mesh, x: Float[Array, "*batch V d"]) -> Float[Array, "*batch V d"]:
+    """(𝓛 x)_i = x_i - sum_{j ~ i} x_j / sqrt(d_i d_j),
+    𝓛 = I - D^{-1/2} A D^{-1/2}   (thesis ch.1 eq.7).
+
+    Chung's convention for an isolated vertex: (𝓛 x)_i = 0.  Eigenvalues in [0, 2].
+    """
+    s = _inv_sqrt_degree(mesh, x.dtype)[:, None]
+    connected = (mesh.degree > 0)[:, None]
+    return jnp.where(connected, x, 0) - s * neighbor_sum(mesh, s * x)
+
+
+def umbrella(mesh: Mesh, x: Float[Array, "*batch V d"]) -> Float[Array, "*batch V d"]:
+    """(K x)_i = (1/d_i) sum_{j ~ i} x_j - x_i,   K = D^{-1} A - I   (thesis ch.3 eq.2).
+
+    Not symmetric; rows sum to 0; eigenvalues in [-2, 0].  0 at isolated vertices.
+    """
+    d = degree(mesh, x.dtype)[:, None]
+    mean = safe_divide(neighbor_sum(mesh, x), d)
+    return jnp.where(d > 0, mean - x, 0)
+
+
+def vertex_gradient(mesh: Mesh, x: Float[Array, "*batch V d"]) -> Float[Array, "*batch H d"]:
+    """grad x_i = { x_j / sqrt(d_j) - x_i / sqrt(d_i) : j ~ i }   (thesis ch.1 eq.9).
+
+    One row per directed edge (src = i, dst = j), in ``mesh.src`` order.
+    """
+    y = _inv_sqrt_degree(mesh, x.dtype)[:, None] * x
+    return y[..., mesh.dst, :] - y[..., mesh.src, :]
+
+
+def vertex_laplace(mesh: Mesh, x: Float[Array, "*batch V d"]) -> Float[Array, "*batch V d"]:
+    """Δx_i = sum_{j ~ i} (1/sqrt(d_i)) (x_j / sqrt(d_j) - x_i / sqrt(d_i))
+    (thesis ch.1 eq.10) = -(𝓛 x)_i.
+
+    Note: unlike the umbrella operator this is *not* zero on constant fields
+    where neighbouring degrees differ, so a flow built on it is not
+    translation invariant.
+    """
+    s = _inv_sqrt_degree(mesh, x.dtype)[:, None]
+    return s * segment_sum_rows(vertex_gradient(mesh, x), mesh.src, mesh.num_vertices)
+
+
+def gradient_magnitude(
+    mesh: Mesh, x: Float[Array, "*batch V d"], variant: str = "paper"
+) -> Float[Array, "*batch V"]:
+    """|grad x_i| = sqrt(sum_{j ~ i} ||x_i / sqrt(d_i) - x_j / sqrt(d_j)||^2)
+    (thesis ch.2 eq.5, ch.3 eq.8).
+
+    ``variant="paper"`` is that formula; ``variant="translation_invariant"``
+    drops the degree normalisation, sqrt(sum_{j ~ i} ||x_i - x_j||^2), which is
+    unchanged when the mesh is translated.
+    """
+    if variant == "paper":
+        g = vertex_gradient(mesh, x)
+    elif variant == "translation_invariant":
+        g = x[..., mesh.dst, :] - x[..., mesh.src, :]
+    else:
+        raise ValueError(f"variant must be 'paper' or 'translation_invariant', got {variant!r}")
+    sq = segment_sum_scalars(jnp.sum(g * g, axis=-1), mesh.src, mesh.num_vertices)
+    pos = sq > 0
+    return jnp.where(pos, jnp.sqrt(jnp.where(pos, sq, 1)), 0)
+
+
+def cotangent_weights(mesh: Mesh) -> Float[Array, "*batch E"]:
+    """c_ij = cot α_ij + cot β_ij per undirected edge (``mesh.edges`` order), where
+    α_ij, β_ij are the angles opposite edge (i, j) in its two faces.  A boundary
+    edge has one face and hence one cotangent; a non-manifold edge sums over all
+    its faces; degenerate faces contribute 0.  (No factor 1/2.)"""
+    cot = corner_cotangents(mesh)
+    flat = cot.reshape(*cot.shape[:-2], -1)
+    return segment_sum_scalars(flat, mesh.face_edges.reshape(-1), mesh.num_edges)
+
+
+def laplace_beltrami_weights(mesh: Mesh) -> Float[Array, "*batch H"]:
+    """w_ij = 3 (cot α_ij + cot β_ij) / η_i per directed edge (thesis ch.4 eq.2),
+    η_i the total area of the triangles around v_i.  Row-normalised, so
+    w_ij != w_ji in general.  0 where η_i = 0."""
+    c = cotangent_weights(mesh)[..., mesh.edge_of]
+    eta = vertex_areas(mesh)[..., mesh.src]
+    return safe_divide(3 * c, eta)
+
+
+def laplace_beltrami(mesh: Mesh, x: Float[Array, "*batch V d"]) -> Float[Array, "*batch V d"]:
+    """Δ_m x_i = sum_{j ~ i} w_ij (x_j - x_i), w from :func:`laplace_beltrami_weights`
+    (thesis ch.4 eq.1).  The thesis's matrix L = D - W (eq.2) acts as -Δ_m."""
+    w = laplace_beltrami_weights(mesh)[..., None]
+    diff = x[..., mesh.dst, :] - x[..., mesh.src, :]
+    return segment_sum_rows(w * diff, mesh.src, mesh.num_vertices)
+
+
+def cotangent_laplacian(mesh: Mesh, x: Float[Array, "*batch V d"]) -> Float[Array, "*batch V d"]:
+    """(L_c x)_i = (1/2) sum_{j ~ i} (cot α_ij + cot β_ij)(x_j - x_i): the symmetric
+    cotangent Laplacian (Pinkall–Polthier; Desbrun et al. 1999 without the mass
+    matrix).  Negative semi-definite on well-shaped meshes."""
+    w = 0.5 * cotangent_weights(mesh)[..., mesh.edge_of, None]
+    diff = x[..., mesh.dst, :] - x[..., mesh.src, :]
+    return segment_sum_rows(w * diff, mesh.src, mesh.num_vertices)

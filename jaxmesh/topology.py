@@ -1,0 +1,165 @@
+"""Discrete, host-side topology queries (numpy / scipy, not traced).
+
+These read the integer arrays of a :class:`~jaxmesh.Mesh` and answer once:
+Euler characteristic, boundary, components, manifoldness, orientation, genus.
+They cannot run inside ``jax.jit`` (they need concrete arrays).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components as _cc
+
+from .mesh import Mesh, zero_area_faces
+
+__all__ = [
+    "euler_characteristic",
+    "edge_face_counts",
+    "boundary_edges",
+    "boundary_loops",
+    "non_manifold_edges",
+    "non_manifold_vertices",
+    "connected_components",
+    "is_consistently_oriented",
+    "genus",
+    "duplicate_vertices",
+    "mesh_info",
+]
+
+
+def euler_characteristic(mesh: Mesh) -> int:
+    """χ = |V| - |E| + |T| (thesis ch.1 §1.3.3)."""
+    return mesh.num_vertices - mesh.num_edges + mesh.num_faces
+
+
+def edge_face_counts(mesh: Mesh) -> np.ndarray:
+    """Number of faces using each undirected edge (``mesh.edges`` order)."""
+    return np.bincount(np.asarray(mesh.face_edges).ravel(), minlength=mesh.num_edges)
+
+
+def boundary_edges(mesh: Mesh) -> np.ndarray:
+    """(B, 2) edges used by exactly one face."""
+    return np.asarray(mesh.edges)[edge_face_counts(mesh) == 1]
+
+
+def non_manifold_edges(mesh: Mesh) -> np.ndarray:
+    """(K, 2) edges used by more than two faces."""
+    return np.asarray(mesh.edges)[edge_face_counts(mesh) > 2]
+
+
+def boundary_loops(mesh: Mesh) -> int:
+    """Number of connected chains of boundary edges (holes, for a manifold mesh)."""
+    b = boundary_edges(mesh)
+    if len(b) == 0:
+        return 0
+    used, inv = np.unique(b.ravel(), return_inverse=True)
+    inv = inv.reshape(-1, 2)
+    g = sp.coo_matrix((np.ones(len(b)), (inv[:, 0], inv[:, 1])), shape=(len(used),) * 2)
+    return int(_cc(g, directed=False)[0])
+
+
+def connected_components(mesh: Mesh) -> tuple[int, np.ndarray]:
+    """(count, labels) of the vertex graph; an isolated vertex is its own component."""
+    m = mesh.num_vertices
+    src, dst = np.asarray(mesh.src), np.asarray(mesh.dst)
+    g = sp.coo_matrix((np.ones(len(src)), (src, dst)), shape=(m, m))
+    n, labels = _cc(g, directed=False)
+    return int(n), labels
+
+
+def non_manifold_vertices(mesh: Mesh) -> np.ndarray:
+    """Indices of vertices whose incident faces do not form a single fan.
+
+    For each vertex v the 'link' graph joins the neighbours a, b of every face
+    (v, a, b); a manifold vertex (interior or boundary) has a connected link.
+    Computed for all vertices at once: the nodes are the directed edges v -> a,
+    and each face corner joins v -> a with v -> b.
+    """
+    f = np.asarray(mesh.faces, dtype=np.int64)
+    src, dst = np.asarray(mesh.src, np.int64), np.asarray(mesh.dst, np.int64)
+    m = mesh.num_vertices
+    key = src * m + dst  # sorted, because src/dst are sorted by (src, dst)
+    v, a, b = f.ravel(), f[:, [1, 2, 0]].ravel(), f[:, [2, 0, 1]].ravel()
+    ia = np.searchsorted(key, v * m + a)
+    ib = np.searchsorted(key, v * m + b)
+    h = len(src)
+    g = sp.coo_matrix((np.ones(len(ia)), (ia, ib)), shape=(h, h))
+    _, labels = _cc(g, directed=False)
+    first = np.unique(labels, return_index=True)[1]
+    pieces = np.bincount(src[first], minlength=m)
+    return np.flatnonzero(pieces > 1)
+
+
+def is_consistently_oriented(mesh: Mesh) -> bool:
+    """True when no directed edge (a, b) is used by two faces (so every interior
+    edge is traversed once in each direction)."""
+    f = np.asarray(mesh.faces, dtype=np.int64)
+    m = mesh.num_vertices
+    he = (f * m + f[:, [1, 2, 0]]).ravel()
+    return len(np.unique(he)) == len(he)
+
+
+def genus(mesh: Mesh) -> int | None:
+    """Genus g of a connected, orientable, manifold mesh from χ = 2 - 2g - b
+    (b boundary loops); ``None`` where it is not defined (several components,
+    non-manifold, inconsistently oriented, or isolated vertices)."""
+    n_comp, _ = connected_components(mesh)
+    if (
+        n_comp != 1
+        or len(non_manifold_edges(mesh))
+        or len(non_manifold_vertices(mesh))
+        or not is_consistently_oriented(mesh)
+    ):
+        return None
+    twice_g = 2 - euler_characteristic(mesh) - boundary_loops(mesh)
+    return twice_g // 2 if twice_g >= 0 and twice_g % 2 == 0 else None
+
+
+def duplicate_vertices(mesh: Mesh) -> int:
+    """Number of vertices whose exact position repeats an earlier vertex."""
+    v = np.asarray(mesh.vertices)
+    if v.ndim != 2:
+        raise ValueError("duplicate_vertices needs a single mesh")
+    return int(len(v) - len(np.unique(v, axis=0)))
+
+
+def mesh_info(mesh: Mesh) -> dict:
+    """Everything ``jaxmesh info`` prints, as a JSON-ready dict."""
+    from .geometry import bounding_box_diagonal, mean_edge_length
+
+    if mesh.batch_shape:
+        raise ValueError("mesh_info needs a single mesh, not a batch")
+    counts = edge_face_counts(mesh)
+    n_comp, _ = connected_components(mesh)
+    nm_edges = int((counts > 2).sum())
+    nm_verts = len(non_manifold_vertices(mesh))
+    deg = np.asarray(mesh.degree)
+    faces = np.asarray(mesh.faces)
+    oriented = is_consistently_oriented(mesh)
+    dup_faces = len(faces) - len(np.unique(np.sort(faces, axis=1), axis=0))
+    return {
+        "vertices": mesh.num_vertices,
+        "faces": mesh.num_faces,
+        "edges": mesh.num_edges,
+        "boundary_edges": int((counts == 1).sum()),
+        "boundary_loops": boundary_loops(mesh),
+        "components": n_comp,
+        "euler_characteristic": euler_characteristic(mesh),
+        "genus": genus(mesh),
+        "watertight": bool((counts == 2).all()),
+        "manifold": nm_edges == 0 and nm_verts == 0,
+        "non_manifold_edges": nm_edges,
+        "non_manifold_vertices": nm_verts,
+        "consistently_oriented": oriented,
+        "mean_edge_length": float(mean_edge_length(mesh)),
+        "bbox_diagonal": float(bounding_box_diagonal(mesh)),
+        "degree_min": int(deg.min()),
+        "degree_max": int(deg.max()),
+        "degree_mean": float(deg.mean()),
+        "isolated_vertices": int((deg == 0).sum()),
+        "degenerate_faces": int(zero_area_faces(np.asarray(mesh.vertices), faces).sum()),
+        "duplicate_faces": int(dup_faces),
+        "duplicate_vertices": duplicate_vertices(mesh),
+        "dtype": str(mesh.dtype),
+    }
