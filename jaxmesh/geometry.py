@@ -52,15 +52,25 @@ def face_corners(mesh: Mesh) -> Float[Array, "*batch F 3 3"]:
     return mesh.vertices[..., mesh.faces, :]
 
 
-def face_areas(mesh: Mesh) -> Float[Array, "*batch F"]:
-    """Triangle areas by the numerically stable Heron formula (thesis ch.1 eq.1).
+def face_areas(mesh: Mesh, method: Literal["cross", "heron"] = "cross") -> Float[Array, "*batch F"]:
+    """Triangle areas.
 
-    With side lengths sorted a >= b >= c:
+    ``method="cross"`` (default): area = ||(v_1 - v_0) x (v_2 - v_0)|| / 2, accurate to
+    rounding from the coordinates, also for needles.
+
+    ``method="heron"``: the thesis's numerically stable Heron formula (ch.1 eq.1),
+    with side lengths sorted a >= b >= c:
     area = 1/4 sqrt((a + (b + c)) (c - (a - b)) (c + (a - b)) (a + (b - c))).
-    The radicand is clamped at 0 (rounding can make it slightly negative for a
-    needle) and the square root is guarded, so zero-area faces give area 0
-    and a finite gradient.
+    It is stable *given* the side lengths, but side lengths computed from
+    coordinates have already lost a needle's height (a 1e-9-high triangle on a
+    unit base has sides that round to 0.5, 0.5, 1 in float64, area 0), so it is
+    not the default.  The radicand is clamped at 0 and the square root guarded,
+    so zero-area faces give area 0 and a finite gradient in both methods.
     """
+    if method == "cross":
+        return 0.5 * safe_norm(_face_cross(mesh))
+    if method != "heron":
+        raise ValueError(f"method must be 'cross' or 'heron', got {method!r}")
     p = face_corners(mesh)
     sides = safe_norm(jnp.stack([p[..., 1, :] - p[..., 2, :],
                                  p[..., 2, :] - p[..., 0, :],

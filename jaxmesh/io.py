@@ -151,6 +151,22 @@ def load(
         raise MeshFileError(f"{p}: {err}") from err
 
 
+def _binary_ply(vertices: np.ndarray, faces: np.ndarray) -> bytes:
+    """Binary little-endian PLY with double coordinates and int32 indices
+    (trimesh's exporter writes float32 coordinates, which loses precision)."""
+    header = (
+        "ply\nformat binary_little_endian 1.0\ncomment written by jaxmesh\n"
+        f"element vertex {len(vertices)}\n"
+        "property double x\nproperty double y\nproperty double z\n"
+        f"element face {len(faces)}\n"
+        "property list uchar int vertex_indices\nend_header\n"
+    ).encode("ascii")
+    face_rec = np.empty(len(faces), dtype=[("n", "u1"), ("idx", "<i4", (3,))])
+    face_rec["n"] = 3
+    face_rec["idx"] = faces
+    return header + np.ascontiguousarray(vertices, dtype="<f8").tobytes() + face_rec.tobytes()
+
+
 def save(mesh: Mesh, path: str | os.PathLike, *, overwrite: bool = False, file_type: str | None = None) -> Path:
     """Write ``mesh`` (single, unbatched) to OBJ, PLY (binary), OFF or STL.
 
@@ -172,7 +188,7 @@ def save(mesh: Mesh, path: str | os.PathLike, *, overwrite: bool = False, file_t
         raise ValueError("refusing to save a mesh with non-finite vertex coordinates")
     tm = mesh.to_trimesh()
     if fmt == "ply":
-        data = tm.export(file_type="ply", encoding="binary")
+        data = _binary_ply(vertices, np.asarray(mesh.faces))
     elif fmt == "obj":
         data = tm.export(file_type="obj", include_normals=False, include_texture=False,
                          digits=17)

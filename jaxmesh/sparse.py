@@ -79,12 +79,14 @@ def umbrella_matrix(mesh: Mesh) -> sp.csr_matrix:
 
 def edge_length_matrix(mesh: Mesh) -> sp.csr_matrix:
     """E with e_ij = ||v_i - v_j|| for j ~ i (thesis ch.1 eq.5)."""
+    _single(mesh)
     lengths = np.asarray(edge_lengths(mesh), dtype=np.float64)
     return directed_matrix(mesh, lengths[np.asarray(mesh.edge_of)])
 
 
 def cotangent_weight_matrix(mesh: Mesh) -> sp.csr_matrix:
     """W_c with W_ij = cot α_ij + cot β_ij (symmetric, zero diagonal)."""
+    _single(mesh)
     c = np.asarray(ops.cotangent_weights(mesh), dtype=np.float64)
     return directed_matrix(mesh, c[np.asarray(mesh.edge_of)])
 
@@ -98,6 +100,7 @@ def cotangent_laplacian_matrix(mesh: Mesh) -> sp.csr_matrix:
 def laplace_beltrami_matrix(mesh: Mesh) -> sp.csr_matrix:
     """L = D - W, w_ij = 3 (cot α_ij + cot β_ij) / η_i, D_ii = sum_j w_ij
     (thesis ch.4 eq.2).  Not symmetric.  L x = -Δ_m x."""
+    _single(mesh)
     w = np.asarray(ops.laplace_beltrami_weights(mesh), dtype=np.float64)
     wm = directed_matrix(mesh, w)
     return (sp.diags(np.asarray(wm.sum(axis=1)).ravel()) - wm).tocsr()

@@ -1,0 +1,89 @@
+"""Shared fixtures: small hand-checkable meshes, the shared real meshes (skipped
+when ../shared/meshes is absent), x64 and strict dtype promotion."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import jax
+import numpy as np
+import pytest
+
+jax.config.update("jax_enable_x64", True)
+jax.config.update("jax_numpy_dtype_promotion", "strict")
+
+import jaxmesh  # noqa: E402
+
+SHARED_MESHES = Path(
+    os.environ.get("JAXMESH_SHARED_MESHES", Path(__file__).resolve().parents[1].parent / "shared" / "meshes")
+)
+
+
+def shared_mesh_path(name: str) -> Path:
+    """Path of a mesh in ../shared/meshes, or skip the test with the reason."""
+    p = SHARED_MESHES / name
+    if not p.is_file():
+        pytest.skip(f"shared mesh {name} not found under {SHARED_MESHES} "
+                    "(set JAXMESH_SHARED_MESHES or check out ../shared beside the repo)")
+    return p
+
+
+def tetrahedron_arrays():
+    v = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
+    f = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])  # outward
+    return v, f
+
+
+def octahedron_arrays():
+    v = np.array([[1.0, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]])
+    f = np.array([[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4],
+                  [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]])
+    return v, f
+
+
+def grid_arrays(nx: int = 4, ny: int = 3, jitter: float = 0.0, seed: int = 0):
+    """Open (nx+1) x (ny+1) grid in the z = 0 plane, two triangles per cell."""
+    xs, ys = np.meshgrid(np.arange(nx + 1, dtype=float), np.arange(ny + 1, dtype=float), indexing="ij")
+    v = np.stack([xs.ravel(), ys.ravel(), np.zeros(xs.size)], axis=1)
+    if jitter:
+        rng = np.random.default_rng(seed)
+        v = v + jitter * rng.standard_normal(v.shape)
+    idx = lambda i, j: i * (ny + 1) + j  # noqa: E731
+    f = []
+    for i in range(nx):
+        for j in range(ny):
+            a, b, c, d = idx(i, j), idx(i + 1, j), idx(i + 1, j + 1), idx(i, j + 1)
+            f += [[a, b, c], [a, c, d]]
+    return v, np.array(f)
+
+
+@pytest.fixture
+def tetra():
+    return jaxmesh.Mesh.from_arrays(*tetrahedron_arrays())
+
+
+@pytest.fixture
+def octa():
+    return jaxmesh.Mesh.from_arrays(*octahedron_arrays())
+
+
+@pytest.fixture
+def triangle():
+    return jaxmesh.Mesh.from_arrays(np.array([[0.0, 0, 0], [3, 0, 0], [0, 4, 0]]), np.array([[0, 1, 2]]))
+
+
+@pytest.fixture
+def grid():
+    return jaxmesh.Mesh.from_arrays(*grid_arrays())
+
+
+@pytest.fixture
+def bumpy_grid():
+    v, f = grid_arrays(5, 4, jitter=0.15, seed=1)
+    return jaxmesh.Mesh.from_arrays(v, f)
+
+
+@pytest.fixture(scope="session")
+def spot():
+    return jaxmesh.data.load_sample("spot", dtype=np.float64)

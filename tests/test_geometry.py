@@ -1,0 +1,115 @@
+"""Geometry: hand values, trimesh references, gradients, jit, batching."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from jax.test_util import check_grads
+
+import jaxmesh
+from jaxmesh import geometry as G
+
+
+def test_triangle_hand_values(triangle):
+    np.testing.assert_allclose(G.face_areas(triangle), [6.0])
+    np.testing.assert_allclose(G.face_normals(triangle), [[0, 0, 1.0]])
+    np.testing.assert_allclose(G.edge_lengths(triangle), [3.0, 4.0, 5.0])  # edges (0,1),(0,2),(1,2)
+    np.testing.assert_allclose(G.mean_edge_length(triangle), 4.0)
+    np.testing.assert_allclose(G.corner_angles(triangle),
+                               [[np.pi / 2, np.arccos(0.6), np.arccos(0.8)]])
+    np.testing.assert_allclose(G.corner_cotangents(triangle), [[0.0, 0.75, 4 / 3]], atol=1e-15)
+    np.testing.assert_allclose(G.vertex_areas(triangle), [6.0, 6.0, 6.0])
+    np.testing.assert_allclose(G.bounding_box_diagonal(triangle), 5.0)
+
+
+def test_tetrahedron_hand_values(tetra):
+    np.testing.assert_allclose(G.face_areas(tetra), [0.5, 0.5, 0.5, np.sqrt(3) / 2])
+    s = 1 / np.sqrt(3)
+    np.testing.assert_allclose(G.face_normals(tetra), [[0, 0, -1], [0, -1, 0], [-1, 0, 0], [s, s, s]],
+                               atol=1e-15)
+    np.testing.assert_allclose(G.vertex_normals(tetra, "uniform")[0], [-s, -s, -s])
+    # vertex 1 = (1,0,0) touches faces 0, 1, 3 (normals -z, -y, (1,1,1)/sqrt3), area weights 1/2, 1/2, sqrt3/2
+    n = 0.5 * np.array([0, 0, -1.0]) + 0.5 * np.array([0, -1.0, 0]) + np.sqrt(3) / 2 * np.array([s, s, s])
+    np.testing.assert_allclose(G.vertex_normals(tetra, "area")[1], n / np.linalg.norm(n), atol=1e-15)
+    # angles at vertex 1: 45 deg in faces 0 and 1, 60 deg in the equilateral face 3
+    n = np.pi / 4 * np.array([0, 0, -1.0]) + np.pi / 4 * np.array([0, -1.0, 0]) + np.pi / 3 * np.array([s, s, s])
+    np.testing.assert_allclose(G.vertex_normals(tetra, "angle")[1], n / np.linalg.norm(n), atol=1e-15)
+
+
+def test_octahedron_hand_values(octa):
+    np.testing.assert_allclose(G.face_areas(octa), np.full(8, np.sqrt(3) / 2))
+    np.testing.assert_allclose(G.corner_angles(octa), np.full((8, 3), np.pi / 3))
+    for w in ("uniform", "angle", "area"):
+        np.testing.assert_allclose(G.vertex_normals(octa, w), np.asarray(octa.vertices), atol=1e-15)
+
+
+def test_heron_equals_half_cross_product():
+    rng = np.random.default_rng(0)
+    v = rng.standard_normal((40, 3))
+    f = np.array([rng.choice(40, 3, replace=False) for _ in range(60)])
+    m = jaxmesh.Mesh.from_arrays(v, f)
+    cross = 0.5 * np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1)
+    np.testing.assert_allclose(G.face_areas(m), cross, rtol=1e-12)
+    np.testing.assert_allclose(G.face_areas(m, method="heron"), cross, rtol=1e-10)
+
+
+def test_needles_cross_product_keeps_the_area_heron_from_lengths_cannot():
+    # height 1e-9 on a unit base: the side lengths round to (1, 0.5, 0.5) in float64,
+    # so the thesis's stable Heron (stable in the lengths) returns 0.
+    needle = jaxmesh.Mesh.from_arrays(np.array([[0.0, 0, 0], [1, 0, 0], [0.5, 1e-9, 0]]),
+                                      np.array([[0, 1, 2]]), warn=False)
+    np.testing.assert_allclose(G.face_areas(needle), [0.5e-9], rtol=1e-6)
+    assert float(G.face_areas(needle, method="heron")[0]) == 0.0
+    # at height 1e-5 the lengths still carry the height and the stable form recovers it
+    thin = needle.with_vertices(needle.vertices.at[2, 1].set(1e-5))
+    np.testing.assert_allclose(G.face_areas(thin, method="heron"), [0.5e-5], rtol=1e-5)
+
+
+def test_against_trimesh(spot):
+    tm = spot.to_trimesh()
+    np.testing.assert_allclose(G.face_areas(spot), tm.area_faces, rtol=1e-10)
+    np.testing.assert_allclose(G.face_normals(spot), tm.face_normals, atol=1e-10)
+    # trimesh's vertex normals are angle-weighted face-normal averages
+    np.testing.assert_allclose(G.vertex_normals(spot, "angle"), tm.vertex_normals, atol=1e-8)
+    np.testing.assert_allclose(G.edge_lengths(spot),
+                               np.linalg.norm(np.diff(tm.vertices[np.asarray(spot.edges)], axis=1)[:, 0], axis=1))
+    np.testing.assert_allclose(G.corner_angles(spot), tm.face_angles, atol=1e-10)
+
+
+FUNCS = [
+    lambda m: G.face_areas(m),
+    lambda m: G.face_areas(m, method="heron"),
+    lambda m: G.face_normals(m),
+    lambda m: G.vertex_normals(m, "angle"),
+    lambda m: G.vertex_normals(m, "area"),
+    lambda m: G.corner_cotangents(m),
+    lambda m: G.mean_edge_length(m),
+    lambda m: G.vertex_areas(m),
+]
+
+
+@pytest.mark.parametrize("k", range(len(FUNCS)))
+def test_gradients_against_finite_differences(bumpy_grid, k):
+    f = FUNCS[k]
+    w = jnp.asarray(np.random.default_rng(k).standard_normal(np.shape(f(bumpy_grid))))
+    loss = lambda x: jnp.sum(w * f(bumpy_grid.with_vertices(x)))  # noqa: E731
+    check_grads(loss, (bumpy_grid.vertices,), order=1, modes=("rev",), eps=1e-6, atol=1e-5, rtol=1e-5)
+
+
+@pytest.mark.parametrize("k", range(len(FUNCS)))
+def test_jit_equals_eager_and_vmap_equals_loop(bumpy_grid, k):
+    f = FUNCS[k]
+    np.testing.assert_allclose(jax.jit(f)(bumpy_grid), f(bumpy_grid), rtol=1e-12, atol=1e-14)
+    x = bumpy_grid.vertices
+    batch = jnp.stack([x, 1.5 * x + 0.3, x[::-1] * 0 + x ** 2])
+    batched = f(bumpy_grid.with_vertices(batch))
+    vm = jax.vmap(lambda y: f(bumpy_grid.with_vertices(y)))(batch)
+    for i in range(3):
+        ref = f(bumpy_grid.with_vertices(batch[i]))
+        np.testing.assert_allclose(batched[i], ref, rtol=1e-12, atol=1e-14)
+        np.testing.assert_allclose(vm[i], ref, rtol=1e-12, atol=1e-14)
+
+
+def test_rejects_unknown_weighting(tetra):
+    with pytest.raises(ValueError, match="weighting must be"):
+        G.vertex_normals(tetra, "cotan")

@@ -1,0 +1,110 @@
+"""Topology summaries: hand cases, and the shared meshes against MANIFEST.md."""
+
+import re
+
+import numpy as np
+import pytest
+
+import jaxmesh
+from jaxmesh import topology as T
+from conftest import SHARED_MESHES, grid_arrays
+
+
+def test_hand_cases(tetra, octa, grid, triangle):
+    assert T.euler_characteristic(tetra) == 2 and T.genus(tetra) == 0
+    assert T.euler_characteristic(octa) == 2
+    assert T.euler_characteristic(triangle) == 1 and len(T.boundary_edges(triangle)) == 3
+    # 5 x 4 vertices grid (4 x 3 cells): boundary is 2 * (4 + 3) edges, one loop, a disk
+    assert len(T.boundary_edges(grid)) == 14 and T.boundary_loops(grid) == 1
+    assert T.genus(grid) == 0 and T.connected_components(grid)[0] == 1
+    assert T.is_consistently_oriented(tetra)
+
+
+def torus_arrays(n=6, k=4):
+    idx = lambda i, j: (i % n) * k + (j % k)  # noqa: E731
+    a, b = np.meshgrid(np.linspace(0, 2 * np.pi, n, endpoint=False),
+                       np.linspace(0, 2 * np.pi, k, endpoint=False), indexing="ij")
+    v = np.stack([(2 + np.cos(b)) * np.cos(a), (2 + np.cos(b)) * np.sin(a), np.sin(b)], -1).reshape(-1, 3)
+    f = []
+    for i in range(n):
+        for j in range(k):
+            f += [[idx(i, j), idx(i + 1, j), idx(i + 1, j + 1)], [idx(i, j), idx(i + 1, j + 1), idx(i, j + 1)]]
+    return v, np.array(f)
+
+
+def test_torus_and_two_components(tetra):
+    t = jaxmesh.Mesh.from_arrays(*torus_arrays())
+    assert T.euler_characteristic(t) == 0 and T.genus(t) == 1
+    v, f = grid_arrays(2, 2)
+    two = jaxmesh.Mesh.from_arrays(np.vstack([v, v + 10]), np.vstack([f, f + len(v)]))
+    assert T.connected_components(two)[0] == 2 and T.genus(two) is None
+
+
+def test_non_manifold_vertex_bowtie():
+    v = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [-1, 0, 0], [0, -1, 0]])
+    m = jaxmesh.Mesh.from_arrays(v, np.array([[0, 1, 2], [0, 3, 4]]))
+    np.testing.assert_array_equal(T.non_manifold_vertices(m), [0])
+    assert len(T.non_manifold_edges(m)) == 0 and T.genus(m) is None
+
+
+def test_inconsistent_orientation():
+    v = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]])
+    flipped = jaxmesh.Mesh.from_arrays(v, np.array([[0, 1, 2], [1, 2, 3]]))
+    assert not T.is_consistently_oriented(flipped)
+    ok = jaxmesh.Mesh.from_arrays(v, np.array([[0, 1, 2], [2, 1, 3]]))
+    assert T.is_consistently_oriented(ok)
+
+
+def manifest_rows():
+    path = SHARED_MESHES / "MANIFEST.md"
+    if not path.is_file():
+        return []
+    rows = []
+    for line in path.read_text().splitlines():
+        c = [x.strip() for x in line.split("|")]
+        if len(c) > 10 and c[1].endswith(".ply") and c[2].isdigit():
+            rows.append(c)
+    return rows
+
+
+MAIN = [r for r in manifest_rows() if r[7] in ("yes", "no")]
+DEFECTS = [r for r in manifest_rows() if r[7] not in ("yes", "no")]
+
+
+def _require(rows):
+    if not rows:
+        pytest.skip(f"{SHARED_MESHES}/MANIFEST.md not found: shared meshes absent")
+
+
+@pytest.mark.parametrize("row", MAIN or [None], ids=lambda r: r[1] if r else "absent")
+def test_info_matches_manifest(row):
+    _require(MAIN)
+    info = jaxmesh.mesh_info(jaxmesh.load(SHARED_MESHES / row[1]))
+    expected = dict(vertices=int(row[2]), faces=int(row[3]), edges=int(row[4]),
+                    boundary_edges=int(row[5]), components=int(row[6]),
+                    watertight=row[7] == "yes", euler_characteristic=int(row[10]))
+    assert {k: info[k] for k in expected} == expected
+    assert info["mean_edge_length"] == pytest.approx(float(row[8]), rel=1e-5)
+    assert info["bbox_diagonal"] == pytest.approx(float(row[9]), rel=1e-5)
+    note = {"cow.ply": (False, 1)}.get(row[1], (True, 0))  # MANIFEST: one non-manifold vertex in cow
+    assert (info["manifold"], info["non_manifold_vertices"]) == note
+
+
+@pytest.mark.parametrize("row", DEFECTS or [None], ids=lambda r: r[1] if r else "absent")
+def test_defect_info_matches_manifest(row):
+    _require(DEFECTS)
+    info = jaxmesh.mesh_info(jaxmesh.load(SHARED_MESHES / "defects" / row[1]))
+    expected = dict(vertices=int(row[2]), faces=int(row[3]), edges=int(row[4]),
+                    boundary_edges=int(row[5]), non_manifold_edges=int(row[6]),
+                    duplicate_vertices=int(row[7]), components=int(row[8]), degenerate_faces=int(row[9]))
+    assert {k: info[k] for k in expected} == expected
+
+
+def test_manifest_genus_notes():
+    _require(MAIN)
+    genus = {}
+    for r in MAIN:
+        if r[1] in ("eight.ply", "fertility.ply", "spot.ply"):
+            genus[r[1]] = T.genus(jaxmesh.load(SHARED_MESHES / r[1]))
+    assert genus == {"eight.ply": 2, "fertility.ply": 4, "spot.ply": 0}
+    assert re.search(r"genus 4", (SHARED_MESHES / "MANIFEST.md").read_text())
