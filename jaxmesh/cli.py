@@ -80,8 +80,34 @@ def _run_info(args) -> int:
     return 0
 
 
+# ---------------------------------------------------------------- convert
+
+
+def _configure_convert(p: argparse.ArgumentParser) -> None:
+    p.add_argument("input", metavar="IN", help="mesh file to read")
+    p.add_argument("output", metavar="OUT", help="mesh file to write (format from the suffix)")
+    p.add_argument("--force", action="store_true", help="replace OUT if it exists")
+    p.add_argument("--merge-duplicates", action="store_true",
+                   help="merge exactly coincident vertices (first occurrence kept, order kept)")
+
+
+def _run_convert(args) -> int:
+    import jax
+
+    from .io import load, save
+
+    # a conversion must not round coordinates: read and write in float64
+    jax.config.update("jax_enable_x64", True)
+    mesh = load(args.input, merge_duplicates=args.merge_duplicates or None)
+    save(mesh, args.output, overwrite=args.force)
+    print(f"wrote {args.output}: {mesh.num_vertices} vertices, {mesh.num_faces} faces", file=sys.stderr)
+    return 0
+
+
 COMMANDS: dict[str, tuple[str, Callable, Callable]] = {
     "info": ("counts, topology and geometry summary of a mesh", _configure_info, _run_info),
+    "convert": ("convert between OBJ, PLY, OFF and STL, keeping vertex order", _configure_convert,
+                _run_convert),
 }
 
 

@@ -24,6 +24,7 @@ __all__ = [
     "is_consistently_oriented",
     "genus",
     "duplicate_vertices",
+    "face_adjacency",
     "mesh_info",
 ]
 
@@ -114,6 +115,25 @@ def genus(mesh: Mesh) -> int | None:
         return None
     twice_g = 2 - euler_characteristic(mesh) - boundary_loops(mesh)
     return twice_g // 2 if twice_g >= 0 and twice_g % 2 == 0 else None
+
+
+def face_adjacency(mesh: Mesh) -> np.ndarray:
+    """(P, 2) pairs of faces (f < g) sharing an edge, sorted; on a non-manifold
+    edge every pair of its faces is listed.  The face-neighbourhood of the
+    normal-filtering methods (Yagou et al., Fleishman et al.)."""
+    fe = np.asarray(mesh.face_edges).ravel()
+    face = np.repeat(np.arange(mesh.num_faces), 3)
+    order = np.argsort(fe, kind="stable")
+    fe, face = fe[order], face[order]
+    starts = np.flatnonzero(np.r_[True, fe[1:] != fe[:-1]])
+    counts = np.diff(np.r_[starts, len(fe)])
+    pairs = [np.stack([face[starts[counts == 2]], face[starts[counts == 2] + 1]], 1)]
+    for s, c in zip(starts[counts > 2], counts[counts > 2]):  # rare: non-manifold edges
+        group = face[s:s + c]
+        i, j = np.triu_indices(c, 1)
+        pairs.append(np.stack([group[i], group[j]], 1))
+    out = np.sort(np.concatenate(pairs), axis=1)
+    return np.unique(out, axis=0)
 
 
 def duplicate_vertices(mesh: Mesh) -> int:

@@ -4,6 +4,7 @@ import json
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from jaxmesh.cli import main
@@ -57,3 +58,24 @@ def test_python_dash_m_entry_point():
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr
     assert json.loads(r.stdout)["vertices"] == 2930
+
+
+def test_convert_never_overwrites_without_force(capsys, tmp_path):
+    import jaxmesh
+
+    src = shared_mesh_path("eight.ply")
+    out = tmp_path / "eight.obj"
+    assert main(["convert", str(src), str(out)]) == 0
+    assert jaxmesh.load(out).num_faces == 1536
+    out.write_text("keep me")
+    assert main(["convert", str(src), str(out)]) == 1
+    assert "--force" in capsys.readouterr().err and out.read_text() == "keep me"
+    assert main(["convert", str(src), str(out), "--force"]) == 0
+    assert jaxmesh.load(out).num_faces == 1536
+    # PLY -> PLY keeps every coordinate bit
+    ply = tmp_path / "eight.ply"
+    assert main(["convert", str(src), str(ply)]) == 0
+    import trimesh
+
+    np.testing.assert_array_equal(trimesh.load(ply, process=False).vertices,
+                                  trimesh.load(src, process=False).vertices)

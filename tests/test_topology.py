@@ -108,3 +108,18 @@ def test_manifest_genus_notes():
             genus[r[1]] = T.genus(jaxmesh.load(SHARED_MESHES / r[1]))
     assert genus == {"eight.ply": 2, "fertility.ply": 4, "spot.ply": 0}
     assert re.search(r"genus 4", (SHARED_MESHES / "MANIFEST.md").read_text())
+
+
+def test_face_adjacency(tetra, grid):
+    # every pair of the tetrahedron's 4 faces shares an edge
+    np.testing.assert_array_equal(T.face_adjacency(tetra), [[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]])
+    # open grid: one pair per interior edge
+    interior = grid.num_edges - len(T.boundary_edges(grid))
+    pairs = T.face_adjacency(grid)
+    assert len(pairs) == interior
+    f = np.asarray(grid.faces)
+    for a, b in pairs:
+        assert len(set(f[a]) & set(f[b])) == 2
+    v = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1]])
+    nm = jaxmesh.Mesh.from_arrays(v, np.array([[0, 1, 2], [1, 0, 3], [0, 1, 4]]))
+    np.testing.assert_array_equal(T.face_adjacency(nm), [[0, 1], [0, 2], [1, 2]])
