@@ -4,7 +4,7 @@ The public names are re-exported here; each lives in a module of its own
 (see the README for the layout).
 """
 
-from . import data, geometry, metrics, operators, sparse, topology
+from . import data, denoise, geometry, metrics, operators, sparse, topology
 from .geometry import (
     bounding_box_diagonal,
     corner_angles,
@@ -43,6 +43,7 @@ __all__ = [
     "vertex_areas",
     "bounding_box_diagonal",
     "data",
+    "denoise",
     "geometry",
     "metrics",
     "operators",

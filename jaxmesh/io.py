@@ -186,14 +186,13 @@ def save(mesh: Mesh, path: str | os.PathLike, *, overwrite: bool = False, file_t
     vertices = np.asarray(mesh.vertices, dtype=np.float64)
     if not np.isfinite(vertices).all():
         raise ValueError("refusing to save a mesh with non-finite vertex coordinates")
-    tm = mesh.to_trimesh()
     if fmt == "ply":
         data = _binary_ply(vertices, np.asarray(mesh.faces))
     elif fmt == "obj":
-        data = tm.export(file_type="obj", include_normals=False, include_texture=False,
-                         digits=17)
+        data = mesh.to_trimesh().export(file_type="obj", include_normals=False,
+                                        include_texture=False, digits=17)
     else:
-        data = tm.export(file_type=fmt)
+        data = mesh.to_trimesh().export(file_type=fmt)
     if isinstance(data, str):
         data = data.encode()
     fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=parent)

@@ -134,9 +134,9 @@ def zero_area_faces(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     A face counts as degenerate when |(b - a) x (c - a)| <= eps * (|b - a|^2 + |c - a|^2),
     eps the machine epsilon of the vertex dtype: a scale-free test.
     """
+    dt = np.asarray(vertices).dtype
+    eps = np.finfo(dt if np.issubdtype(dt, np.floating) else np.float64).eps
     v = np.asarray(vertices, dtype=np.float64)
-    eps = np.finfo(np.asarray(vertices).dtype).eps if np.issubdtype(
-        np.asarray(vertices).dtype, np.floating) else np.finfo(np.float64).eps
     a, b, c = (v[faces[:, k]] for k in range(3))
     e1, e2 = b - a, c - a
     cross = np.linalg.norm(np.cross(e1, e2), axis=1)
