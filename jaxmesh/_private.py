@@ -43,8 +43,3 @@ def safe_divide(num: Array, den: Array) -> Array:
     """num / den where den != 0, else 0 (double ``where``: no NaN in gradients)."""
     ok = den != 0
     return jnp.where(ok, num / jnp.where(ok, den, 1), 0)
-
-
-def cast_like(x: Array, like: Array) -> Array:
-    """Cast ``x`` to the floating dtype of ``like`` (integer arrays included)."""
-    return jnp.asarray(x).astype(jnp.result_type(like))

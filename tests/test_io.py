@@ -78,39 +78,34 @@ def test_polygons_are_triangulated_with_a_warning_or_refused(tmp_path):
         assert jaxmesh.load(off).num_faces == 2
 
 
-def test_truncated_garbage_empty_and_missing_files(tmp_path):
-    src = shared_mesh_path("spot.ply").read_bytes()
-    trunc = tmp_path / "trunc.ply"
-    trunc.write_bytes(src[: len(src) // 2])
-    with pytest.raises(MeshFileError, match=r"trunc.ply: cannot read as PLY"):
-        jaxmesh.load(trunc)
-    garbage = tmp_path / "g.off"
-    garbage.write_text("this is not a mesh\n")
-    with pytest.raises(MeshFileError, match="g.off"):
-        jaxmesh.load(garbage)
-    empty = tmp_path / "e.obj"
-    empty.write_text("")
-    with pytest.raises(MeshFileError, match="empty file"):
-        jaxmesh.load(empty)
-    nofaces = tmp_path / "n.obj"
-    nofaces.write_text("v 0 0 0\nv 1 0 0\n")
-    with pytest.raises(MeshFileError, match="no triangles"):
-        jaxmesh.load(nofaces)
-    with pytest.raises(MeshFileError, match="no such file"):
-        jaxmesh.load(tmp_path / "absent.ply")
-    with pytest.raises(MeshFileError, match="unsupported format"):
-        jaxmesh.load(tmp_path / "x.dae")
+def _half_of_spot() -> bytes:
+    data = jaxmesh.data.sample_path("spot").read_bytes()
+    return data[: len(data) // 2]
 
 
-def test_bad_values_in_files_are_named(tmp_path):
-    p = tmp_path / "nan.obj"
-    p.write_text("v 0 0 0\nv 1 0 nan\nv 0 1 0\nf 1 2 3\n")
-    with pytest.raises(MeshFileError, match="vertex 1 has a non-finite coordinate"):
+BAD_FILES = [  # (file name, content or None for absent, expected message)
+    ("trunc.ply", _half_of_spot, r"trunc.ply: cannot read as PLY"),
+    ("g.off", "this is not a mesh\n", r"g.off"),
+    ("e.obj", "", r"empty file"),
+    ("n.obj", "v 0 0 0\nv 1 0 0\n", r"no triangles"),
+    ("absent.ply", None, r"no such file"),
+    ("x.dae", None, r"unsupported format"),
+    ("nan.obj", "v 0 0 0\nv 1 0 nan\nv 0 1 0\nf 1 2 3\n", r"vertex 1 has a non-finite coordinate"),
+    ("range.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n", r"range.off: .*range"),
+]
+
+
+@pytest.mark.parametrize("name,content,message", BAD_FILES, ids=[b[0] for b in BAD_FILES])
+def test_bad_files_get_a_clear_error(tmp_path, name, content, message):
+    p = tmp_path / name
+    if callable(content):
+        content = content()
+    if isinstance(content, bytes):
+        p.write_bytes(content)
+    elif content is not None:
+        p.write_text(content)
+    with pytest.raises(MeshFileError, match=message):
         jaxmesh.load(p)
-    q = tmp_path / "range.off"
-    q.write_text("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n")
-    with pytest.raises(MeshFileError, match="range.off: .*range"):
-        jaxmesh.load(q)
 
 
 def test_merge_duplicates_on_a_real_defect_mesh():
