@@ -43,3 +43,17 @@ def safe_divide(num: Array, den: Array) -> Array:
     """num / den where den != 0, else 0 (double ``where``: no NaN in gradients)."""
     ok = den != 0
     return jnp.where(ok, num / jnp.where(ok, den, 1), 0)
+
+
+def det_adjugate_3x3(h: Float[Array, "... 3 3"]):
+    """Closed-form determinant and adjugate of 3×3 matrices (inverse = adjugate / det)."""
+    a, b, c = h[..., 0, 0], h[..., 0, 1], h[..., 0, 2]
+    d, e, f = h[..., 1, 0], h[..., 1, 1], h[..., 1, 2]
+    g, k, i = h[..., 2, 0], h[..., 2, 1], h[..., 2, 2]
+    co = jnp.stack([
+        jnp.stack([e * i - f * k, c * k - b * i, b * f - c * e], -1),
+        jnp.stack([f * g - d * i, a * i - c * g, c * d - a * f], -1),
+        jnp.stack([d * k - e * g, b * g - a * k, a * e - b * d], -1),
+    ], -2)
+    det = a * co[..., 0, 0] + b * co[..., 1, 0] + c * co[..., 2, 0]
+    return det, co

@@ -43,8 +43,12 @@ def edge_lengths(mesh: Mesh) -> Float[Array, "*batch E"]:
 
 
 def mean_edge_length(mesh: Mesh) -> Float[Array, "*batch"]:
-    """l_bar = (1/|E|) sum_{e_ij in E} ||e_ij||   (thesis ch.1 eq.4)."""
-    return jnp.mean(edge_lengths(mesh), axis=-1)
+    """l_bar = (1/|E|) sum_{e_ij in E} ||e_ij||   (thesis ch.1 eq.4).
+
+    Self-loop edges (i == j) never occur in a built mesh; they are the padding
+    of :func:`jaxmesh.batch.pad_batch` and are not counted."""
+    real = (mesh.edges[:, 0] != mesh.edges[:, 1]).astype(mesh.dtype)
+    return jnp.sum(edge_lengths(mesh) * real, axis=-1) / jnp.maximum(jnp.sum(real), 1)
 
 
 def face_corners(mesh: Mesh) -> Float[Array, "*batch F 3 3"]:

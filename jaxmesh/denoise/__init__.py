@@ -1,6 +1,16 @@
-"""Mesh denoising (thesis ch.2).  Work in progress: the kernel flow is here;
-the baselines, the method registry and batching helpers follow (issue 3)."""
+"""Mesh denoising (thesis ch.2): the multivariate kernel flow and every baseline
+the thesis compares against, behind one registry (:data:`METHODS`).
 
+Every method is a pure function ``(mesh, **params) -> Mesh`` over the
+edge-list segment-sum operators, with a ``lax.fori_loop`` over a static
+iteration count: jittable, batched over leading vertex dimensions and
+differentiable with respect to its continuous parameters and the positions.
+"""
+
+from .anisotropic import anisotropic_diffusion
+from .bilateral import bilateral_denoising
+from .curvature import cotangent_flow, implicit_diffusion_step
+from .geometric_diffusion import anisotropic_stiffness, face_curvatures, geometric_diffusion
 from .kernel_flow import (
     VARIANTS,
     kernel_diffusion,
@@ -8,5 +18,17 @@ from .kernel_flow import (
     kernel_weights,
     neighborhood_covariances,
 )
+from .kde import kernel_density
+from .laplacian import laplacian_smoothing, taubin_smoothing
+from .normal_filtering import FaceRings, face_rings, filter_normals, normal_filtering, ring_sum
+from .registry import METHODS, Method, Param, denoise, diverged
 
-__all__ = ["VARIANTS", "kernel_diffusion", "kernel_step", "kernel_weights", "neighborhood_covariances"]
+__all__ = [
+    "METHODS", "Method", "Param", "denoise", "diverged",
+    "VARIANTS", "kernel_diffusion", "kernel_step", "kernel_weights", "neighborhood_covariances",
+    "kernel_density",
+    "anisotropic_diffusion", "laplacian_smoothing", "taubin_smoothing", "cotangent_flow",
+    "implicit_diffusion_step", "normal_filtering", "filter_normals", "face_rings", "FaceRings",
+    "ring_sum", "bilateral_denoising", "geometric_diffusion", "anisotropic_stiffness",
+    "face_curvatures",
+]

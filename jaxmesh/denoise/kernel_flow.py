@@ -15,6 +15,16 @@ changes the result (the origin leaks into the update).  The random-walk
 variant applies the same weights κ to x_j - x_i and is translation invariant.
 λ is an absolute squared length: it is meaningful only for a given scale.
 
+Stability.  κ_ij grows like λ^{-3/2}: once s_i = (1/d_i) sum_j κ_ij exceeds 1
+the random-walk step overshoots the neighbour mean and, past 2, the flow
+diverges (on unit-diagonal meshes this happens for λ below ~0.1).  With
+``safeguard=True`` (default) the random-walk step is scaled by
+α_i = min(1, 1/s_i), so every vertex moves to a convex combination of itself
+and its κ-weighted neighbour mean: the flow cannot diverge for any λ > 0, and
+it is unchanged wherever s_i <= 1 (all λ of practical interest).
+``safeguard=False`` is the unmodified step; the paper variant has no
+safeguard (use :func:`jaxmesh.denoise.diverged` to detect a blow-up).
+
 Everything is a segment sum over the directed edge list; 3×3 determinants and
 inverses are closed-form (adjugate), so the flow is jittable, vmappable and
 differentiable with respect to λ and the positions.
@@ -28,7 +38,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from .._private import safe_divide, segment_sum_rows
+from .._private import det_adjugate_3x3, safe_divide, segment_sum_rows, segment_sum_scalars
 from ..mesh import Mesh
 from ..operators import neighbor_sum
 
@@ -50,18 +60,16 @@ def neighborhood_covariances(
     return h + jnp.asarray(lam, x.dtype)[..., None, None, None] * jnp.eye(3, dtype=x.dtype)
 
 
-def _det_and_inverse(h: Float[Array, "... 3 3"]):
-    """Closed-form determinant and inverse (adjugate / det) of 3×3 matrices."""
-    a, b, c = h[..., 0, 0], h[..., 0, 1], h[..., 0, 2]
-    d, e, f = h[..., 1, 0], h[..., 1, 1], h[..., 1, 2]
-    g, k, i = h[..., 2, 0], h[..., 2, 1], h[..., 2, 2]
-    co = jnp.stack([
-        jnp.stack([e * i - f * k, c * k - b * i, b * f - c * e], -1),
-        jnp.stack([f * g - d * i, a * i - c * g, c * d - a * f], -1),
-        jnp.stack([d * k - e * g, b * g - a * k, a * e - b * d], -1),
-    ], -2)
-    det = a * co[..., 0, 0] + b * co[..., 1, 0] + c * co[..., 2, 0]
-    return det, co / det[..., None, None]
+def _kernel_parts(mesh: Mesh, x: Float[Array, "*batch V 3"], lam):
+    """(norm_i = det(H_i)^{-1/2} (2π)^{-3/2} per vertex, p_ij = exp(-½ δ^T H_i^{-1} δ)
+    per directed edge), so that κ_ij = norm_i p_ij.  det is floored at the
+    dtype's smallest normal number so that an underflow cannot give inf/NaN."""
+    det, co = det_adjugate_3x3(neighborhood_covariances(mesh, x, lam))
+    det = jnp.maximum(det, jnp.finfo(x.dtype).tiny)
+    norm = (2 * jnp.pi) ** -1.5 * jax.lax.rsqrt(det)
+    delta = x[..., mesh.src, :] - x[..., mesh.dst, :]
+    q = jnp.einsum("...hk,...hkl,...hl->...h", delta, co[..., mesh.src, :, :], delta)
+    return norm, jnp.exp(-0.5 * q / det[..., mesh.src])
 
 
 def kernel_weights(mesh: Mesh, x: Float[Array, "*batch V 3"], lam):
@@ -69,35 +77,40 @@ def kernel_weights(mesh: Mesh, x: Float[Array, "*batch V 3"], lam):
     off-diagonal and diagonal entries of the kernel matrix 𝒦 (eq.10):
     κ_ij = det(H_i)^{-1/2} (2π)^{-3/2} exp(-½ δ^T H_i^{-1} δ), δ = x_i - x_j,
     κ_ii = det(H_i)^{-1/2} (2π)^{-3/2}."""
-    det, inv = _det_and_inverse(neighborhood_covariances(mesh, x, lam))
-    norm = (2 * jnp.pi) ** -1.5 * jax.lax.rsqrt(det)
-    delta = x[..., mesh.src, :] - x[..., mesh.dst, :]
-    q = jnp.einsum("...hk,...hkl,...hl->...h", delta, inv[..., mesh.src, :, :], delta)
-    return norm[..., mesh.src] * jnp.exp(-0.5 * q), norm
+    norm, p = _kernel_parts(mesh, x, lam)
+    return norm[..., mesh.src] * p, norm
 
 
 def kernel_step(
     mesh: Mesh, x: Float[Array, "*batch V 3"], lam,
     variant: Literal["paper", "random_walk"] = "random_walk",
+    safeguard: bool = True,
 ) -> Float[Array, "*batch V 3"]:
     """One Jacobi iteration of the kernel flow (see the module docstring)."""
-    kappa, _ = kernel_weights(mesh, x, lam)
+    norm, p = _kernel_parts(mesh, x, lam)
     d = mesh.degree.astype(x.dtype)
     if variant == "paper":
         s = safe_divide(jnp.ones_like(d), jnp.sqrt(d))[:, None]
         y = s * x
         diff = y[..., mesh.dst, :] - y[..., mesh.src, :]
+        kappa = norm[..., mesh.src] * p
         return x + s * segment_sum_rows(kappa[..., None] * diff, mesh.src, mesh.num_vertices)
     if variant == "random_walk":
         diff = x[..., mesh.dst, :] - x[..., mesh.src, :]
-        return x + safe_divide(segment_sum_rows(kappa[..., None] * diff, mesh.src, mesh.num_vertices),
-                               d[:, None])
+        pull = segment_sum_rows(p[..., None] * diff, mesh.src, mesh.num_vertices)
+        # step_i = norm_i * pull_i / d_i; with the safeguard norm_i * pull_i / max(d_i, norm_i sum_j p_ij),
+        # written as pull_i / max(d_i / norm_i, sum_j p_ij) so that a huge norm_i cannot overflow.
+        den = d / norm
+        if safeguard:
+            den = jnp.maximum(den, segment_sum_scalars(p, mesh.src, mesh.num_vertices))
+        return x + safe_divide(pull, den[..., None])
     raise ValueError(f"variant must be one of {VARIANTS}, got {variant!r}")
 
 
 def kernel_diffusion(
-    mesh: Mesh, lam, iterations: int = 5,
+    mesh: Mesh, lam=0.4, iterations: int = 5,
     variant: Literal["paper", "random_walk"] = "random_walk",
+    safeguard: bool = True,
 ) -> Mesh:
     """Run ``iterations`` steps of the kernel flow and return the smoothed mesh.
 
@@ -106,12 +119,13 @@ def kernel_diffusion(
     ``lax.fori_loop``, so compile time does not grow with it and reverse-mode
     gradients with respect to ``lam`` and the positions are available.
     ``variant="paper"`` is eq.7 exactly; ``"random_walk"`` (default) applies
-    the same κ to x_j - x_i and is translation invariant (see the module doc).
+    the same κ to x_j - x_i and is translation invariant (see the module doc);
+    ``safeguard`` (random walk only) caps the step so the flow cannot diverge.
     """
     if variant not in VARIANTS:
         raise ValueError(f"variant must be one of {VARIANTS}, got {variant!r}")
     if not isinstance(iterations, int) or iterations < 0:
         raise ValueError(f"iterations must be a non-negative int, got {iterations!r}")
     x0 = mesh.vertices
-    x = jax.lax.fori_loop(0, iterations, lambda _, x: kernel_step(mesh, x, lam, variant), x0)
+    x = jax.lax.fori_loop(0, iterations, lambda _, x: kernel_step(mesh, x, lam, variant, safeguard), x0)
     return mesh.with_vertices(x)

@@ -1,0 +1,136 @@
+"""Batches of different meshes, and sharding a batch over devices.
+
+Two kinds of batch:
+
+* **one connectivity, many positions** (noisy copies of one mesh): a
+  :class:`~jaxmesh.Mesh` whose ``vertices`` have shape (B, V, 3).  Every
+  operator and denoiser handles the leading axis directly, no ``vmap`` needed.
+* **different meshes**: :func:`pad_batch` pads them to common sizes and stacks
+  every array, so ``jax.vmap(f)(batch.mesh)`` runs f on all of them at once.
+  The padding is inert: padded vertices are isolated (degree 0) at the
+  origin, padded edges are self-loops (d, d) and padded faces (d, d, d) on the
+  first padded vertex d, so no real vertex, edge or face sees them, and
+  every operator leaves them at 0.  :func:`unpad` cuts the results back.
+
+:func:`shard` lays a batch's leading axis over the local devices with
+``jax.sharding``; jitted functions then run data-parallel without further
+change.  On several hosts, call ``jax.distributed.initialize()`` first and the
+same code shards over every process's devices.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple, Sequence
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax.sharding import Mesh as DeviceMesh
+from jax.sharding import NamedSharding, PartitionSpec
+from jaxtyping import Array, Bool
+
+from .mesh import Mesh
+
+__all__ = ["PaddedBatch", "pad_batch", "unpad", "shard"]
+
+
+class PaddedBatch(NamedTuple):
+    """``mesh``: every array stacked along a new leading axis of size B;
+    ``num_vertices``, ``num_faces``: the true sizes (host ints);
+    ``vertex_mask``: True on real vertices, shape (B, V_pad)."""
+
+    mesh: Mesh
+    num_vertices: tuple[int, ...]
+    num_faces: tuple[int, ...]
+    vertex_mask: Bool[Array, "B V"]
+
+
+def _pad(a: np.ndarray, length: int, fill) -> np.ndarray:
+    extra = length - a.shape[0]
+    pad = np.broadcast_to(np.asarray(fill, a.dtype), (extra,) + a.shape[1:])
+    return np.concatenate([a, pad])
+
+
+def pad_batch(meshes: Sequence[Mesh]) -> PaddedBatch:
+    """Stack single meshes of any sizes into one padded batch (module docstring).
+    All meshes must share a dtype; batched meshes are refused."""
+    meshes = list(meshes)
+    if not meshes:
+        raise ValueError("pad_batch needs at least one mesh")
+    for k, m in enumerate(meshes):
+        if not isinstance(m, Mesh):
+            raise TypeError(f"meshes[{k}] is a {type(m).__name__}, not a jaxmesh.Mesh")
+        if m.batch_shape:
+            raise ValueError(f"meshes[{k}] is already batched {m.batch_shape}; pass single meshes")
+    dtypes = {m.dtype for m in meshes}
+    if len(dtypes) > 1:
+        raise ValueError(f"meshes have different dtypes {sorted(map(str, dtypes))}; cast with .astype")
+    nv = max(m.num_vertices for m in meshes) + 1   # at least one padding vertex and edge each
+    nf = max(m.num_faces for m in meshes)
+    ne = max(m.num_edges for m in meshes) + 1
+    cols = {k: [] for k in ("vertices", "faces", "edges", "face_edges", "src", "dst", "edge_of", "degree")}
+    for m in meshes:
+        d, e = m.num_vertices, m.num_edges      # first padding vertex / edge
+        cols["vertices"].append(_pad(np.asarray(m.vertices), nv, 0))
+        cols["faces"].append(_pad(np.asarray(m.faces), nf, d))
+        cols["face_edges"].append(_pad(np.asarray(m.face_edges), nf, e))
+        cols["edges"].append(_pad(np.asarray(m.edges), ne, d))
+        cols["src"].append(_pad(np.asarray(m.src), 2 * ne, d))
+        cols["dst"].append(_pad(np.asarray(m.dst), 2 * ne, d))
+        cols["edge_of"].append(_pad(np.asarray(m.edge_of), 2 * ne, e))
+        cols["degree"].append(_pad(np.asarray(m.degree), nv, 0))
+    stacked = {k: jnp.asarray(np.stack(v)) for k, v in cols.items()}
+    stacked["vertices"] = stacked["vertices"].astype(meshes[0].dtype)
+    sizes = tuple(m.num_vertices for m in meshes)
+    mask = jnp.asarray(np.arange(nv)[None, :] < np.asarray(sizes)[:, None])
+    return PaddedBatch(Mesh(**stacked), sizes, tuple(m.num_faces for m in meshes), mask)
+
+
+def unpad(batch: PaddedBatch, result=None) -> list[Mesh]:
+    """The batch's meshes cut back to their true sizes.  ``result`` (a Mesh as
+    returned by a vmapped denoiser, or a vertex array (B, V_pad, 3)) replaces
+    the positions; without it the input positions are returned."""
+    x = batch.mesh.vertices if result is None else (
+        result.vertices if isinstance(result, Mesh) else jnp.asarray(result))
+    out = []
+    for k, (v, f) in enumerate(zip(batch.num_vertices, batch.num_faces)):
+        e = int(jnp.sum(batch.mesh.edges[k, :, 0] != batch.mesh.edges[k, :, 1]))
+        fields = dict(
+            vertices=x[k, :v], faces=batch.mesh.faces[k, :f], edges=batch.mesh.edges[k, :e],
+            face_edges=batch.mesh.face_edges[k, :f], src=batch.mesh.src[k, : 2 * e],
+            dst=batch.mesh.dst[k, : 2 * e], edge_of=batch.mesh.edge_of[k, : 2 * e],
+            degree=batch.mesh.degree[k, :v],
+        )
+        out.append(Mesh(**fields))
+    return out
+
+
+def shard(batch, devices=None):
+    """Lay the leading (batch) axis over ``devices`` (default: all of
+    ``jax.devices()``) with a ``NamedSharding``; other axes are not split.
+
+    ``batch`` is a batched :class:`~jaxmesh.Mesh` (only the vertices are
+    split; the shared topology is replicated), a :class:`PaddedBatch` (every
+    array is split) or any array.  The batch size must be a multiple of the
+    device count.
+    """
+    devices = list(jax.devices() if devices is None else devices)
+    grid = DeviceMesh(np.array(devices), ("batch",))
+    split = NamedSharding(grid, PartitionSpec("batch"))
+    whole = NamedSharding(grid, PartitionSpec())
+
+    def check(a):
+        if a.ndim == 0 or a.shape[0] % len(devices):
+            raise ValueError(f"batch size {a.shape[0] if a.ndim else 'of a scalar'} is not a multiple "
+                             f"of the {len(devices)} devices; pad the batch (e.g. repeat an element)")
+        return jax.device_put(a, split)
+
+    if isinstance(batch, PaddedBatch):
+        return batch._replace(mesh=jax.tree.map(check, batch.mesh),
+                              vertex_mask=check(batch.vertex_mask))
+    if isinstance(batch, Mesh):
+        if not batch.batch_shape:
+            raise ValueError("shard needs a batched mesh (vertices of shape (B, V, 3))")
+        replicated = jax.tree.map(lambda a: jax.device_put(a, whole), batch)
+        return replicated.with_vertices(check(batch.vertices))
+    return check(jnp.asarray(batch))

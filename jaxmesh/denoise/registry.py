@@ -1,0 +1,155 @@
+"""One registry of denoising methods with a uniform call signature.
+
+``METHODS[name](mesh, **params) -> Mesh``; every method accepts a batched
+mesh (vertices of shape (*batch, V, 3), one parameter value per batch element
+or one for all) and is jittable with its integer parameters static.  Each
+:class:`Param` says whether it is continuous (and so tunable by gradient, with
+the range in which tuning should search), an iteration count, or a choice.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+from typing import Any, Callable
+
+import jax.numpy as jnp
+
+from ..geometry import bounding_box_diagonal
+from ..mesh import Mesh
+from .anisotropic import anisotropic_diffusion
+from .bilateral import bilateral_denoising
+from .curvature import cotangent_flow
+from .geometric_diffusion import geometric_diffusion
+from .kernel_flow import kernel_diffusion
+from .laplacian import laplacian_smoothing, taubin_smoothing
+from .normal_filtering import normal_filtering
+
+__all__ = ["Param", "Method", "METHODS", "denoise", "diverged"]
+
+
+@dataclasses.dataclass(frozen=True)
+class Param:
+    """A method parameter: ``kind`` is "continuous" (tunable; ``bounds`` is the
+    search range, ``log`` whether to search it on a log scale), "int" or "choice"."""
+
+    default: Any
+    kind: str
+    help: str
+    bounds: tuple[float, float] | None = None
+    log: bool = False
+    choices: tuple[str, ...] = ()
+
+
+@dataclasses.dataclass(frozen=True)
+class Method:
+    """A registered denoiser: ``method(mesh, **params)`` fills in the defaults,
+    refuses unknown names and calls ``function``."""
+
+    name: str
+    function: Callable[..., Mesh]
+    params: dict[str, Param]
+    summary: str
+    reference: str
+
+    def defaults(self) -> dict[str, Any]:
+        return {k: p.default for k, p in self.params.items()}
+
+    @property
+    def continuous(self) -> tuple[str, ...]:
+        return tuple(k for k, p in self.params.items() if p.kind == "continuous")
+
+    def resolve(self, **params) -> dict[str, Any]:
+        unknown = sorted(set(params) - set(self.params))
+        if unknown:
+            raise ValueError(f"method {self.name!r} has no parameter(s) {unknown}; "
+                             f"it takes {sorted(self.params)}")
+        full = {**self.defaults(), **params}
+        for k, p in self.params.items():
+            if p.kind == "choice" and full[k] not in p.choices:
+                raise ValueError(f"{self.name}: {k} must be one of {p.choices}, got {full[k]!r}")
+            if p.kind == "int" and (isinstance(full[k], bool) or not isinstance(full[k], int)
+                                    or full[k] < 0):
+                raise ValueError(f"{self.name}: {k} must be a non-negative int, got {full[k]!r}")
+        return full
+
+    def __call__(self, mesh: Mesh, **params) -> Mesh:
+        return self.function(mesh, **self.resolve(**params))
+
+
+def _it(default: int, what: str = "number of iterations") -> Param:
+    return Param(default, "int", what)
+
+
+METHODS: dict[str, Method] = {
+    m.name: m
+    for m in [
+        Method("kernel", kernel_diffusion, {
+            "lam": Param(0.4, "continuous", "regularisation λ of H_i (squared length)", (0.05, 20.0), True),
+            "iterations": _it(5),
+            "variant": Param("random_walk", "choice", "update rule", choices=("random_walk", "paper")),
+            "safeguard": Param(True, "choice", "cap the random-walk step (never diverges)",
+                               choices=(True, False)),
+        }, "multivariate kernel diffusion (the thesis, ch.2)", "Tarmissi 2010, ch.2 eq.6-12"),
+        Method("anisotropic", anisotropic_diffusion, {
+            "dt": Param(0.25, "continuous", "step size", (0.01, 0.5), True),
+            "c": Param(1.0, "continuous", "Cauchy scale, relative to the mean |∇x|", (0.05, 20.0), True),
+            "iterations": _it(10),
+            "variant": Param("random_walk", "choice", "update rule", choices=("random_walk", "paper")),
+        }, "vertex-based anisotropic diffusion, Cauchy weight", "Zhang & Ben Hamza 2006"),
+        Method("laplacian", laplacian_smoothing, {
+            "lam": Param(0.5, "continuous", "umbrella step", (0.01, 1.0), True),
+            "iterations": _it(10),
+        }, "Laplacian (umbrella) flow", "Taubin 1995"),
+        Method("taubin", taubin_smoothing, {
+            "lam": Param(0.5, "continuous", "shrinking step λ > 0", (0.01, 1.0), True),
+            "mu": Param(-0.53, "continuous", "inflating step μ < -λ", (-1.0, -0.01)),
+            "iterations": _it(10),
+        }, "Taubin λ|μ low-pass filter", "Taubin 1995"),
+        Method("cotangent", functools.partial(cotangent_flow, implicit=False), {
+            "dt": Param(0.5, "continuous", "normalised explicit step", (0.01, 1.0), True),
+            "iterations": _it(5),
+        }, "mean-curvature flow, cotangent weights, explicit", "Desbrun et al. 1999"),
+        Method("cotangent_implicit", functools.partial(cotangent_flow, implicit=True), {
+            "dt": Param(1.0, "continuous", "time step in units of the mean vertex area", (0.01, 100.0), True),
+            "iterations": _it(3),
+        }, "mean-curvature flow, cotangent weights, implicit (CG)", "Desbrun et al. 1999"),
+        Method("normal_mean", functools.partial(normal_filtering, kind="mean"), {
+            "iterations": _it(1, "outer rounds"),
+            "normal_iterations": _it(5, "normal filter passes per round"),
+            "vertex_iterations": _it(10, "vertex updates per round"),
+        }, "mean filtering of face normals + vertex updating", "Yagou et al. 2002"),
+        Method("normal_median", functools.partial(normal_filtering, kind="median"), {
+            "iterations": _it(1, "outer rounds"),
+            "normal_iterations": _it(5, "normal filter passes per round"),
+            "vertex_iterations": _it(10, "vertex updates per round"),
+        }, "angle-median filtering of face normals + vertex updating", "Yagou et al. 2002"),
+        Method("bilateral", bilateral_denoising, {
+            "sigma_c": Param(1.0, "continuous", "closeness σ_c in mean edge lengths", (0.1, 10.0), True),
+            "sigma_s": Param(0.5, "continuous", "similarity σ_s in mean edge lengths", (0.01, 10.0), True),
+            "iterations": _it(5),
+        }, "bilateral mesh denoising", "Fleishman et al. 2003"),
+        Method("geometric", geometric_diffusion, {
+            "dt": Param(1.0, "continuous", "time step in units of the mean vertex area", (0.01, 100.0), True),
+            "rho": Param(1.0, "continuous", "curvature scale of G, in 1/mean edge length", (0.01, 100.0), True),
+            "iterations": _it(3),
+        }, "anisotropic geometric diffusion (FEM, per-face tensor)", "Clarenz et al. 2000"),
+    ]
+}
+
+
+def denoise(mesh: Mesh, method: str = "kernel", **params) -> Mesh:
+    """``METHODS[method](mesh, **params)`` with a clear error for an unknown method."""
+    if method not in METHODS:
+        raise ValueError(f"unknown method {method!r}; choose one of {sorted(METHODS)}")
+    return METHODS[method](mesh, **params)
+
+
+def diverged(before: Mesh, after: Mesh, growth: float = 10.0):
+    """True (per batch element) where ``after`` has a non-finite coordinate or a
+    bounding-box diagonal more than ``growth`` times that of ``before``: a
+    smoothing flow never enlarges a mesh, so growth means the run blew up."""
+    x = after.vertices
+    finite = jnp.all(jnp.isfinite(x), axis=(-2, -1))
+    grown = bounding_box_diagonal(after) > growth * bounding_box_diagonal(before)
+    return ~finite | grown
