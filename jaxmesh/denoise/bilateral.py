@@ -13,6 +13,11 @@ The closeness weight σ_c smooths, the similarity weight σ_s keeps features
 paper uses a ball of radius 2σ_c; with σ_c ≈ ℓ̄ the two nearly coincide).
 σ_c = sigma_c · ℓ̄ and σ_s = sigma_s · ℓ̄ with ℓ̄ the input's mean edge length,
 so the parameters are dimensionless and the method is scale free.
+
+Vertices move only along their normals, so tangential noise stays: the method
+is made for scanner-like noise along the surface normal (measured on the unit
+bunny at σ = 0.3ℓ̄: visual error 0.17× the noisy input's for normal noise,
+0.69× for isotropic noise; see experiments/denoise).
 """
 
 from __future__ import annotations
@@ -27,7 +32,7 @@ from ._loop import iterate
 __all__ = ["bilateral_denoising"]
 
 
-def bilateral_denoising(mesh: Mesh, sigma_c=1.0, sigma_s=0.5, iterations: int = 5) -> Mesh:
+def bilateral_denoising(mesh: Mesh, sigma_c=1.0, sigma_s=1.0, iterations: int = 3) -> Mesh:
     """``iterations`` bilateral steps (module docstring)."""
     ell = mean_edge_length(mesh)
     sc2 = (jnp.asarray(sigma_c, mesh.dtype) * ell)[..., None] ** 2

@@ -14,7 +14,9 @@ mass M_i = η_i / 3 (a third of the area around v_i):
   the system is solved matrix-free with conjugate gradients (``lineax.CG``) on
   the edge-list segment sums, and is differentiable (lineax's implicit adjoint).
 
-Isolated vertices (M_i = 0, no edges) get unit mass so they stay in place.
+Vertices without area (isolated, or only on zero-area faces, where every
+cotangent weight is 0 too) get the mean mass, so they stay in place and the
+system stays definite.
 """
 
 from __future__ import annotations
@@ -57,9 +59,12 @@ def implicit_diffusion_step(
     """
     geo = mesh.with_vertices(x)
     mass = vertex_areas(geo) / 3
-    mass = jnp.where(mesh.degree > 0, mass, 1)
-    connected = jnp.maximum(jnp.sum(mesh.degree > 0), 1)  # padding/isolated vertices do not count
-    area_per_vertex = jnp.sum(vertex_areas(geo), axis=-1) / (3 * connected)
+    connected = jnp.maximum(jnp.sum(mesh.degree > 0), 1).astype(x.dtype)  # padding/isolated do not count
+    area_per_vertex = jnp.sum(mass, axis=-1) / connected
+    # a vertex with no area (isolated, or only on zero-area faces) has no stiffness either:
+    # give it the mean mass so the system stays definite and the vertex stays put
+    mean_mass = jnp.where(area_per_vertex > 0, area_per_vertex, 1)[..., None]
+    mass = jnp.where(mass > 0, mass, mean_mass)
     tau = (jnp.asarray(dt, x.dtype) * area_per_vertex)[..., None, None]
     m = mass[..., None]
 
@@ -71,7 +76,7 @@ def implicit_diffusion_step(
                                    tags=(lx.symmetric_tag, lx.positive_semidefinite_tag))
     tol = _cg_tolerance(x.dtype)
     sol = lx.linear_solve(op, rhs, lx.CG(rtol=tol, atol=tol * 1e-3, max_steps=max_steps),
-                          options={"y0": x}, throw=False)
+                          options={"y0": jax.lax.stop_gradient(x)}, throw=False)
     return sol.value
 
 

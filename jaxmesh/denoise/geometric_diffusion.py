@@ -94,7 +94,7 @@ def anisotropic_stiffness(mesh: Mesh, rho) -> Float[Array, "*batch E"]:
                                mesh.num_edges)
 
 
-def geometric_diffusion(mesh: Mesh, dt=1.0, rho=1.0, iterations: int = 3) -> Mesh:
+def geometric_diffusion(mesh: Mesh, dt=0.3, rho=1.0, iterations: int = 3) -> Mesh:
     """``iterations`` semi-implicit steps of Clarenz-style anisotropic diffusion
     (module docstring); ``rho`` in units of 1/ℓ̄, ``dt`` in units of the mean vertex area."""
     rho_abs = jnp.asarray(rho, mesh.dtype) / mean_edge_length(mesh)

@@ -31,7 +31,8 @@ __all__ = ["Param", "Method", "METHODS", "denoise", "diverged"]
 @dataclasses.dataclass(frozen=True)
 class Param:
     """A method parameter: ``kind`` is "continuous" (tunable; ``bounds`` is the
-    search range, ``log`` whether to search it on a log scale), "int" or "choice"."""
+    search range, ``log`` whether to search it on a log scale), "int",
+    "choice", or "aux" (auxiliary data such as precomputed topology)."""
 
     default: Any
     kind: str
@@ -77,6 +78,9 @@ class Method:
         return self.function(mesh, **self.resolve(**params))
 
 
+_RINGS = Param(None, "aux", "precomputed face_rings(mesh), needed by the median under jit")
+
+
 def _it(default: int, what: str = "number of iterations") -> Param:
     return Param(default, "int", what)
 
@@ -111,26 +115,28 @@ METHODS: dict[str, Method] = {
             "iterations": _it(5),
         }, "mean-curvature flow, cotangent weights, explicit", "Desbrun et al. 1999"),
         Method("cotangent_implicit", functools.partial(cotangent_flow, implicit=True), {
-            "dt": Param(1.0, "continuous", "time step in units of the mean vertex area", (0.01, 100.0), True),
+            "dt": Param(0.3, "continuous", "time step in units of the mean vertex area", (0.01, 100.0), True),
             "iterations": _it(3),
         }, "mean-curvature flow, cotangent weights, implicit (CG)", "Desbrun et al. 1999"),
         Method("normal_mean", functools.partial(normal_filtering, kind="mean"), {
             "iterations": _it(1, "outer rounds"),
             "normal_iterations": _it(5, "normal filter passes per round"),
             "vertex_iterations": _it(10, "vertex updates per round"),
+            "rings": _RINGS,
         }, "mean filtering of face normals + vertex updating", "Yagou et al. 2002"),
         Method("normal_median", functools.partial(normal_filtering, kind="median"), {
             "iterations": _it(1, "outer rounds"),
             "normal_iterations": _it(5, "normal filter passes per round"),
             "vertex_iterations": _it(10, "vertex updates per round"),
+            "rings": _RINGS,
         }, "angle-median filtering of face normals + vertex updating", "Yagou et al. 2002"),
         Method("bilateral", bilateral_denoising, {
             "sigma_c": Param(1.0, "continuous", "closeness σ_c in mean edge lengths", (0.1, 10.0), True),
-            "sigma_s": Param(0.5, "continuous", "similarity σ_s in mean edge lengths", (0.01, 10.0), True),
-            "iterations": _it(5),
+            "sigma_s": Param(1.0, "continuous", "similarity σ_s in mean edge lengths", (0.01, 10.0), True),
+            "iterations": _it(3),
         }, "bilateral mesh denoising", "Fleishman et al. 2003"),
         Method("geometric", geometric_diffusion, {
-            "dt": Param(1.0, "continuous", "time step in units of the mean vertex area", (0.01, 100.0), True),
+            "dt": Param(0.3, "continuous", "time step in units of the mean vertex area", (0.01, 100.0), True),
             "rho": Param(1.0, "continuous", "curvature scale of G, in 1/mean edge length", (0.01, 100.0), True),
             "iterations": _it(3),
         }, "anisotropic geometric diffusion (FEM, per-face tensor)", "Clarenz et al. 2000"),
