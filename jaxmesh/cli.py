@@ -20,8 +20,7 @@ from typing import Callable
 __all__ = ["main", "COMMANDS"]
 
 
-class CLIError(Exception):
-    """An error to report as ``jaxmesh: error: ...`` with exit status 1."""
+from .cli_denoise import DEMO, DENOISE, NOISE, CLIError
 
 
 def _mesh_source(args) -> list[tuple[str, Callable]]:
@@ -108,6 +107,9 @@ COMMANDS: dict[str, tuple[str, Callable, Callable]] = {
     "info": ("counts, topology and geometry summary of a mesh", _configure_info, _run_info),
     "convert": ("convert between OBJ, PLY, OFF and STL, keeping vertex order", _configure_convert,
                 _run_convert),
+    "noise": NOISE,
+    "denoise": DENOISE,
+    "demo": DEMO,
 }
 
 

@@ -7,6 +7,7 @@ iteration count: jittable, batched over leading vertex dimensions and
 differentiable with respect to its continuous parameters and the positions.
 """
 
+from ._loop import progress
 from .anisotropic import anisotropic_diffusion
 from .bilateral import bilateral_denoising
 from .curvature import cotangent_flow, implicit_diffusion_step
@@ -24,7 +25,7 @@ from .normal_filtering import FaceRings, face_rings, filter_normals, normal_filt
 from .registry import METHODS, Method, Param, denoise, diverged
 
 __all__ = [
-    "METHODS", "Method", "Param", "denoise", "diverged",
+    "METHODS", "Method", "Param", "denoise", "diverged", "progress",
     "VARIANTS", "kernel_diffusion", "kernel_step", "kernel_weights", "neighborhood_covariances",
     "kernel_density",
     "anisotropic_diffusion", "laplacian_smoothing", "taubin_smoothing", "cotangent_flow",

@@ -1,11 +1,18 @@
-"""The iteration driver shared by the denoising flows (not public API)."""
+"""The iteration driver shared by the denoising flows, and its progress hook
+(not public API; :func:`jaxmesh.denoise.progress` is the public face)."""
 
 from __future__ import annotations
 
-from typing import Callable
+import contextlib
+import contextvars
+from typing import Callable, Iterator
 
 import jax
 from jaxtyping import Array, Float
+
+# (callback, depth) while a progress context is active; read at trace time
+_PROGRESS: contextvars.ContextVar = contextvars.ContextVar("jaxmesh_progress", default=None)
+_DEPTH: contextvars.ContextVar = contextvars.ContextVar("jaxmesh_loop_depth", default=0)
 
 
 def check_iterations(iterations, name: str = "iterations") -> int:
@@ -15,8 +22,33 @@ def check_iterations(iterations, name: str = "iterations") -> int:
     return iterations
 
 
+@contextlib.contextmanager
+def progress(callback: Callable[[int], None]) -> Iterator[None]:
+    """Call ``callback(i)`` after outer iteration i of every denoiser traced
+    inside this context (a host callback inside the loop, so it works under
+    jit; nested loops are not reported).  Used by the CLI's progress bar."""
+    token = _PROGRESS.set(callback)
+    try:
+        yield
+    finally:
+        _PROGRESS.reset(token)
+
+
 def iterate(step: Callable[[Float[Array, "*batch V 3"]], Float[Array, "*batch V 3"]],
             x0: Float[Array, "*batch V 3"], iterations: int) -> Float[Array, "*batch V 3"]:
     """x_{k+1} = step(x_k), ``iterations`` times, as a ``lax.fori_loop`` (compile
     time independent of the count; reverse-mode differentiable)."""
-    return jax.lax.fori_loop(0, check_iterations(iterations), lambda _, x: step(x), x0)
+    check_iterations(iterations)
+    report = _PROGRESS.get() if _DEPTH.get() == 0 else None
+
+    def body(i, x):
+        token = _DEPTH.set(_DEPTH.get() + 1)
+        try:
+            y = step(x)
+        finally:
+            _DEPTH.reset(token)
+        if report is not None:
+            jax.debug.callback(lambda i, _: report(int(i)), i, y[..., :1, :1])
+        return y
+
+    return jax.lax.fori_loop(0, iterations, body, x0)

@@ -41,6 +41,7 @@ from jaxtyping import Array, Float
 from .._private import det_adjugate_3x3, safe_divide, segment_sum_rows, segment_sum_scalars
 from ..mesh import Mesh
 from ..operators import neighbor_sum
+from ._loop import iterate
 
 __all__ = ["neighborhood_covariances", "kernel_weights", "kernel_step", "kernel_diffusion",
            "VARIANTS"]
@@ -124,8 +125,5 @@ def kernel_diffusion(
     """
     if variant not in VARIANTS:
         raise ValueError(f"variant must be one of {VARIANTS}, got {variant!r}")
-    if not isinstance(iterations, int) or iterations < 0:
-        raise ValueError(f"iterations must be a non-negative int, got {iterations!r}")
-    x0 = mesh.vertices
-    x = jax.lax.fori_loop(0, iterations, lambda _, x: kernel_step(mesh, x, lam, variant, safeguard), x0)
+    x = iterate(lambda x: kernel_step(mesh, x, lam, variant, safeguard), mesh.vertices, iterations)
     return mesh.with_vertices(x)
