@@ -61,21 +61,25 @@ def _format_value(v) -> str:
     return str(v)
 
 
+def _print_record(record: dict, as_json: bool, first: bool) -> None:
+    """One mesh's record: a JSON line, or a labelled block (blank line between meshes)."""
+    if as_json:
+        print(json.dumps(record), flush=True)
+        return
+    if not first:
+        print()
+    print(record["path"])
+    width = max(len(k) for k in record)
+    for key, value in record.items():
+        if key != "path":
+            print(f"  {key.replace('_', ' '):<{width}}  {_format_value(value)}")
+
+
 def _run_info(args) -> int:
     from .topology import mesh_info
 
     for i, (label, loader) in enumerate(_mesh_source(args)):
-        info = {"path": label, **mesh_info(loader())}
-        if args.json:
-            print(json.dumps(info), flush=True)
-        else:
-            if i:
-                print()
-            print(label)
-            width = max(len(k) for k in info)
-            for key, value in info.items():
-                if key != "path":
-                    print(f"  {key.replace('_', ' '):<{width}}  {_format_value(value)}")
+        _print_record({"path": label, **mesh_info(loader())}, args.json, i == 0)
     return 0
 
 
@@ -103,6 +107,54 @@ def _run_convert(args) -> int:
     return 0
 
 
+# ---------------------------------------------------------------- stats
+
+
+def _configure_stats(p: argparse.ArgumentParser) -> None:
+    from . import data
+
+    p.add_argument("mesh", nargs="*", metavar="MESH", help="mesh file(s)")
+    p.add_argument("--sample", action="append", choices=sorted(data.SAMPLES), help="a shipped sample mesh")
+    p.add_argument("--json", action="store_true", help="one JSON object per mesh, per line")
+    p.add_argument("--plot", metavar="PNG", help="draw the six-panel figure (one mesh only)")
+    p.add_argument("--force", action="store_true", help="replace the --plot file if it exists")
+    p.add_argument("--sources", type=int, default=200, help="geodesic sources (default 200)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the source sample (default 0)")
+    p.add_argument("--knn", type=int, default=8, help="neighbours of the kNN graph (default 8)")
+
+
+def _run_stats(args) -> int:
+    import jax
+
+    from .stats import mesh_statistics, plot_statistics
+
+    jax.config.update("jax_enable_x64", True)
+    sources = _mesh_source(args)
+    if args.plot:
+        if len(sources) > 1:
+            raise CLIError("--plot draws one mesh; name a single MESH")
+        if os.path.exists(args.plot) and not args.force:
+            raise CLIError(f"{args.plot} exists; use --force to replace it")
+    if args.sources < 1:
+        raise CLIError(f"--sources must be >= 1, got {args.sources}")
+    for i, (label, loader) in enumerate(sources):
+        mesh = loader()
+        st = mesh_statistics(mesh, sources=args.sources, seed=args.seed, knn=args.knn)
+        _print_record({"path": label, **st["summary"]}, args.json, i == 0)
+        if args.plot:
+            import io
+
+            import matplotlib
+
+            matplotlib.use("Agg")
+            from .io import write_bytes_atomic
+
+            buf = io.BytesIO()
+            plot_statistics(mesh, st, title=label).savefig(buf, dpi=100, format="png")
+            write_bytes_atomic(args.plot, buf.getvalue(), overwrite=args.force)
+    return 0
+
+
 COMMANDS: dict[str, tuple[str, Callable, Callable]] = {
     "info": ("counts, topology and geometry summary of a mesh", _configure_info, _run_info),
     "convert": ("convert between OBJ, PLY, OFF and STL, keeping vertex order", _configure_convert,
@@ -110,6 +162,8 @@ COMMANDS: dict[str, tuple[str, Callable, Callable]] = {
     "noise": NOISE,
     "denoise": DENOISE,
     "demo": DEMO,
+    "stats": ("degree, assortativity, clustering, geodesic and spectral statistics (ch.5)",
+              _configure_stats, _run_stats),
 }
 
 

@@ -167,6 +167,39 @@ def _binary_ply(vertices: np.ndarray, faces: np.ndarray) -> bytes:
     return header + np.ascontiguousarray(vertices, dtype="<f8").tobytes() + face_rec.tobytes()
 
 
+def write_bytes_atomic(path: str | os.PathLike, data: bytes, *, overwrite: bool = False) -> Path:
+    """Write ``data`` to ``path`` through a temporary file in the same directory,
+    fsynced and moved into place atomically; an existing file is an error
+    (``FileExistsError``) unless ``overwrite``, also if it appears meanwhile."""
+    p = Path(path)
+    parent = p.parent if str(p.parent) else Path(".")
+    if not parent.is_dir():
+        raise MeshFileError(f"{p}: directory {parent} does not exist")
+    if p.exists() and not overwrite:
+        raise FileExistsError(f"{p} exists; pass overwrite=True (CLI: --force) to replace it")
+    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        if overwrite:
+            os.replace(tmp, p)
+        else:
+            try:
+                os.link(tmp, p)  # fails if p appeared meanwhile: no clobbering race
+            except FileExistsError:
+                raise FileExistsError(f"{p} exists; pass overwrite=True (CLI: --force) to replace it")
+            except OSError:
+                if p.exists():
+                    raise FileExistsError(f"{p} exists; pass overwrite=True to replace it")
+                os.replace(tmp, p)  # filesystem without hard links
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+    return p
+
+
 def save(mesh: Mesh, path: str | os.PathLike, *, overwrite: bool = False, file_type: str | None = None) -> Path:
     """Write ``mesh`` (single, unbatched) to OBJ, PLY (binary), OFF or STL.
 
@@ -195,24 +228,5 @@ def save(mesh: Mesh, path: str | os.PathLike, *, overwrite: bool = False, file_t
         data = mesh.to_trimesh().export(file_type=fmt)
     if isinstance(data, str):
         data = data.encode()
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        if overwrite:
-            os.replace(tmp, p)
-        else:
-            try:
-                os.link(tmp, p)  # fails if p appeared meanwhile: no clobbering race
-            except FileExistsError:
-                raise FileExistsError(f"{p} exists; pass overwrite=True (CLI: --force) to replace it")
-            except OSError:
-                if p.exists():
-                    raise FileExistsError(f"{p} exists; pass overwrite=True to replace it")
-                os.replace(tmp, p)  # filesystem without hard links
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+    write_bytes_atomic(p, data, overwrite=overwrite)
     return p

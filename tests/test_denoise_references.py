@@ -226,3 +226,12 @@ def test_kernel_density_matches_scipy_gaussian_kde(noisy):
     np.testing.assert_allclose(kernel_density(noisy, jnp.asarray(pts), chunk=16), ref, rtol=1e-10)
     lit = kernel_density(noisy, jnp.asarray(pts), scale=1.0)
     np.testing.assert_allclose(lit, scipy.stats.gaussian_kde(v.T, bw_method=1.0)(pts.T), rtol=1e-10)
+
+
+def test_hc_matches_trimesh_filter_humphrey(noisy):
+    import trimesh.smoothing
+
+    m = trimesh.Trimesh(np.asarray(noisy.vertices).copy(), np.asarray(noisy.faces), process=False)
+    trimesh.smoothing.filter_humphrey(m, alpha=0.2, beta=0.6, iterations=4)
+    out = METHODS["hc"](noisy, alpha=0.2, beta=0.6, iterations=4).vertices
+    np.testing.assert_allclose(out, m.vertices, atol=1e-12)

@@ -20,7 +20,7 @@ from .kernel_flow import (
     neighborhood_covariances,
 )
 from .kde import kernel_density
-from .laplacian import laplacian_smoothing, taubin_smoothing
+from .laplacian import hc_smoothing, laplacian_smoothing, taubin_smoothing
 from .normal_filtering import FaceRings, face_rings, filter_normals, normal_filtering, ring_sum
 from .registry import METHODS, Method, Param, denoise, diverged
 
@@ -28,7 +28,7 @@ __all__ = [
     "METHODS", "Method", "Param", "denoise", "diverged", "progress",
     "VARIANTS", "kernel_diffusion", "kernel_step", "kernel_weights", "neighborhood_covariances",
     "kernel_density",
-    "anisotropic_diffusion", "laplacian_smoothing", "taubin_smoothing", "cotangent_flow",
+    "anisotropic_diffusion", "laplacian_smoothing", "taubin_smoothing", "hc_smoothing", "cotangent_flow",
     "implicit_diffusion_step", "normal_filtering", "filter_normals", "face_rings", "FaceRings",
     "ring_sum", "bilateral_denoising", "geometric_diffusion", "anisotropic_stiffness",
     "face_curvatures",

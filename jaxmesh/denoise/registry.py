@@ -22,7 +22,7 @@ from .bilateral import bilateral_denoising
 from .curvature import cotangent_flow
 from .geometric_diffusion import geometric_diffusion
 from .kernel_flow import kernel_diffusion
-from .laplacian import laplacian_smoothing, taubin_smoothing
+from .laplacian import hc_smoothing, laplacian_smoothing, taubin_smoothing
 from .normal_filtering import normal_filtering
 
 __all__ = ["Param", "Method", "METHODS", "denoise", "diverged"]
@@ -110,6 +110,11 @@ METHODS: dict[str, Method] = {
             "mu": Param(-0.53, "continuous", "inflating step μ < -λ", (-1.0, -0.01)),
             "iterations": _it(10),
         }, "Taubin λ|μ low-pass filter", "Taubin 1995"),
+        Method("hc", hc_smoothing, {
+            "alpha": Param(0.1, "continuous", "pull towards the original positions", (0.0, 1.0)),
+            "beta": Param(0.5, "continuous", "pull towards the previous positions", (0.0, 1.0)),
+            "iterations": _it(10),
+        }, "HC Laplacian (extra baseline, not in the thesis)", "Vollmer, Mencl & Müller 1999"),
         Method("cotangent", functools.partial(cotangent_flow, implicit=False), {
             "dt": Param(0.5, "continuous", "normalised explicit step", (0.01, 1.0), True),
             "iterations": _it(5),

@@ -1,0 +1,55 @@
+"""Degree statistics (thesis ch.5 eq.1–5): average degree, degree distribution,
+average neighbour connectivity and the assortativity function, and Newman's
+degree assortativity coefficient."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..mesh import Mesh
+from ._graph import edges_and_degree
+
+__all__ = ["average_degree", "degree_distribution", "neighbor_connectivity",
+           "assortativity_function", "degree_assortativity"]
+
+
+def average_degree(mesh: Mesh) -> float:
+    """d̄ = 2|E| / m (eq.1)."""
+    e, _ = edges_and_degree(mesh)
+    return 2 * len(e) / mesh.num_vertices
+
+
+def degree_distribution(mesh: Mesh) -> tuple[np.ndarray, np.ndarray]:
+    """(k, p_k) for every degree k present: p_k = m_k / m (eq.2–3)."""
+    _, d = edges_and_degree(mesh)
+    ks, counts = np.unique(d, return_counts=True)
+    return ks, counts / mesh.num_vertices
+
+
+def neighbor_connectivity(mesh: Mesh) -> np.ndarray:
+    """K_nn(v_i) = (1/d_i) sum_{j~i} d_j (eq.4); 0 for isolated vertices
+    (networkx's average_neighbor_degree convention)."""
+    e, d = edges_and_degree(mesh)
+    s = np.bincount(e[:, 0], d[e[:, 1]], mesh.num_vertices) + np.bincount(e[:, 1], d[e[:, 0]], mesh.num_vertices)
+    return np.where(d > 0, s / np.maximum(d, 1), 0.0)
+
+
+def assortativity_function(mesh: Mesh, knn: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(k, K_nn(k)): the mean of K_nn(v) over the vertices of degree k (eq.5)."""
+    _, d = edges_and_degree(mesh)
+    knn = neighbor_connectivity(mesh) if knn is None else knn
+    ks, inv = np.unique(d, return_inverse=True)
+    return ks, np.bincount(inv, knn) / np.bincount(inv)
+
+
+def degree_assortativity(mesh: Mesh) -> float:
+    """Newman's r: the Pearson correlation of the degrees at the two ends of an
+    edge, over both orientations of every edge (Newman 2002).  NaN when every
+    edge joins vertices of one degree (zero variance)."""
+    e, d = edges_and_degree(mesh)
+    x = np.r_[d[e[:, 0]], d[e[:, 1]]].astype(np.float64)
+    y = np.r_[d[e[:, 1]], d[e[:, 0]]].astype(np.float64)
+    sx = x.std()
+    if sx == 0:
+        return float("nan")
+    return float(np.mean((x - x.mean()) * (y - y.mean())) / (sx * y.std()))

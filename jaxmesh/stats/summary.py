@@ -1,0 +1,98 @@
+"""Everything of ch.5 for one mesh in one call, and the thesis's six-panel figure
+(figs 5.2–5.19: render, spectrum, degree distribution, assortativity,
+clustering, geodesic distances)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..mesh import Mesh
+from .clustering import clustering, clustering_by_degree, thesis_clustering
+from .degree import (assortativity_function, average_degree, degree_assortativity, degree_distribution,
+                     neighbor_connectivity)
+from .geodesic import graph_distances, heat_geodesics, sample_sources
+from .spectrum import laplacian_spectrum
+
+__all__ = ["mesh_statistics", "plot_statistics"]
+
+
+def _finite(d: np.ndarray, sources: np.ndarray) -> np.ndarray:
+    keep = np.isfinite(d)
+    keep[np.arange(len(sources)), sources] = False        # drop the zero self-distances
+    return d[keep]
+
+
+def mesh_statistics(mesh: Mesh, sources: int = 200, seed: int = 0, knn: int = 8,
+                    spectrum_k: int | None = None, geodesics: tuple[str, ...] = ("edges", "knn", "heat")) -> dict:
+    """All ch.5 statistics of ``mesh``: a dict of scalars (``summary``) and
+    arrays (degree distribution, K_nn(k), C(k) both ways, spectra, geodesic
+    distances from ``sources`` seeded vertices by each method in ``geodesics``)."""
+    ks, pk = degree_distribution(mesh)
+    knn_v = neighbor_connectivity(mesh)
+    kk, knn_k = assortativity_function(mesh, knn_v)
+    c = clustering(mesh)
+    ct = thesis_clustering(mesh)
+    ck, c_k = clustering_by_degree(mesh, c)
+    _, ct_k = clustering_by_degree(mesh, ct)
+    src = sample_sources(mesh, sources, seed)
+    dist = {}
+    for g in geodesics:
+        d = heat_geodesics(mesh, src) if g == "heat" else graph_distances(mesh, src, g, knn)
+        dist[g] = _finite(d, src)
+    spec = {kind: laplacian_spectrum(mesh, kind, spectrum_k) for kind in ("combinatorial", "normalized")}
+    d = np.asarray(mesh.degree)
+    connected = d > 0
+    differ = connected & ~np.isclose(c, np.nan_to_num(ct, nan=-1))
+    summary = {
+        "vertices": mesh.num_vertices,
+        "average_degree": average_degree(mesh),
+        "degree_6_share": float(np.mean(d == 6)),
+        "assortativity": degree_assortativity(mesh),
+        "mean_clustering": float(np.mean(c)),
+        "mean_thesis_clustering": float(np.nanmean(ct)),
+        "clustering_formulas_differ_at": int(differ.sum()),
+        "sources": int(len(src)),
+        "seed": seed,
+    }
+    for g, x in dist.items():
+        summary[f"geodesic_{g}_mean"] = float(x.mean()) if x.size else float("nan")
+        summary[f"geodesic_{g}_std"] = float(x.std()) if x.size else float("nan")
+    return {"summary": summary, "degree": (ks, pk), "knn": (kk, knn_k), "clustering": (ck, c_k),
+            "thesis_clustering": (ck, ct_k), "spectrum": spec, "geodesics": dist, "sources": src}
+
+
+def plot_statistics(mesh: Mesh, stats: dict, title: str = "", path=None, up: str = "y"):
+    """The six-panel figure; saved to ``path`` when given.  Returns the figure."""
+    import matplotlib.pyplot as plt
+
+    from ..render import render
+
+    fig, ax = plt.subplots(2, 3, figsize=(12, 7.5))
+    render(mesh, ax[0, 0], title=title or f"{mesh.num_vertices} vertices", up=up)
+    for kind, style in (("combinatorial", "-"), ("normalized", "--")):
+        r, lam = stats["spectrum"][kind]
+        ax[0, 1].plot(r, lam, style, lw=1, label=kind)
+    ax[0, 1].set(xlabel="normalised rank", ylabel="eigenvalue", title="Laplacian spectrum")
+    ax[0, 1].legend(fontsize=7)
+    ks, pk = stats["degree"]
+    ax[0, 2].bar(ks, pk, color="tab:blue")
+    ax[0, 2].set(xlabel="degree k", ylabel="p_k", title="degree distribution")
+    kk, kn = stats["knn"]
+    ax[1, 0].plot(kk, kn, "o-", ms=4)
+    ax[1, 0].set(xlabel="degree k", ylabel="K_nn(k)",
+                 title=f"assortativity (r = {stats['summary']['assortativity']:.3f})")
+    ck, c = stats["clustering"]
+    _, ct = stats["thesis_clustering"]
+    ax[1, 1].plot(ck, c, "o-", ms=4, label="edges among neighbours")
+    ax[1, 1].plot(ck, ct, "x--", ms=4, label="thesis 2/(d-1)")
+    ax[1, 1].set(xlabel="degree k", ylabel="C(k)", title="clustering")
+    ax[1, 1].legend(fontsize=7)
+    for g, x in stats["geodesics"].items():
+        ax[1, 2].hist(x, bins=60, histtype="step", density=True, label=g)
+    ax[1, 2].set(xlabel="distance", ylabel="density",
+                 title=f"geodesic distances ({stats['summary']['sources']} sources)")
+    ax[1, 2].legend(fontsize=7)
+    fig.tight_layout()
+    if path is not None:
+        fig.savefig(path, dpi=100)
+    return fig

@@ -1,0 +1,140 @@
+"""Mesh statistics (thesis ch.5) against networkx and scipy, and the heat
+method against exact great-circle distances on a sphere."""
+
+import json
+
+import networkx as nx
+import numpy as np
+import pytest
+import scipy.linalg
+import scipy.sparse.csgraph as csgraph
+import trimesh
+
+import jaxmesh
+from jaxmesh import stats
+from jaxmesh.cli import main
+
+from conftest import shared_mesh_path
+
+
+def as_networkx(mesh):
+    g = nx.Graph()
+    g.add_nodes_from(range(mesh.num_vertices))
+    g.add_edges_from(np.asarray(mesh.edges).tolist())
+    return g
+
+
+@pytest.fixture(scope="module", params=["camelhead.ply", "cow.ply", "fertility.ply"])
+def real(request):
+    mesh = jaxmesh.load(shared_mesh_path(request.param))
+    return mesh, as_networkx(mesh)
+
+
+def by_node(d, n):
+    return np.array([d[i] for i in range(n)])
+
+
+def test_clustering_matches_networkx(real):
+    mesh, g = real
+    np.testing.assert_allclose(stats.clustering(mesh), by_node(nx.clustering(g), mesh.num_vertices), atol=1e-12)
+    tri = nx.triangles(g)
+    np.testing.assert_array_equal(stats.triangle_counts(mesh), by_node(tri, mesh.num_vertices))
+
+
+def test_degree_statistics_match_networkx(real):
+    mesh, g = real
+    n = mesh.num_vertices
+    np.testing.assert_allclose(stats.neighbor_connectivity(mesh), by_node(nx.average_neighbor_degree(g), n),
+                               atol=1e-12)
+    np.testing.assert_allclose(stats.degree_assortativity(mesh), nx.degree_assortativity_coefficient(g),
+                               atol=1e-10)
+    ks, knn = stats.assortativity_function(mesh)
+    ref = nx.average_degree_connectivity(g)
+    np.testing.assert_allclose(knn, [ref[k] for k in ks], atol=1e-12)
+    ks, pk = stats.degree_distribution(mesh)
+    hist = nx.degree_histogram(g)
+    np.testing.assert_allclose(pk, [hist[k] / n for k in ks])
+    assert stats.average_degree(mesh) == pytest.approx(2 * g.number_of_edges() / n)
+
+
+def test_laplacian_spectrum_matches_networkx_dense_and_sparse():
+    mesh = jaxmesh.load(shared_mesh_path("eight.ply"))
+    g = as_networkx(mesh)
+    for kind, ref_mat in (("combinatorial", nx.laplacian_matrix(g)), ("normalized", nx.normalized_laplacian_matrix(g))):
+        ref = scipy.linalg.eigvalsh(ref_mat.toarray())
+        rank, vals = stats.laplacian_spectrum(mesh, kind)
+        np.testing.assert_allclose(vals, ref, atol=1e-9)
+        assert rank[0] == 0 and rank[-1] == 1
+        rank_k, vals_k = stats.laplacian_spectrum(mesh, kind, k=10)     # extremes through eigsh
+        np.testing.assert_allclose(vals_k, np.r_[ref[:10], ref[-10:]], atol=1e-7)
+        np.testing.assert_allclose(rank_k, np.r_[rank[:10], rank[-10:]])
+
+
+def test_thesis_clustering_equals_general_definition_on_closed_manifold_interior():
+    mesh = jaxmesh.load(shared_mesh_path("fandisk.ply"))       # closed, manifold
+    c, ct = stats.clustering(mesh), stats.thesis_clustering(mesh)
+    d = np.asarray(mesh.degree)
+    t = stats.triangle_counts(mesh)
+    no_chords = t == d                                          # link is one cycle without chords
+    assert no_chords.mean() > 0.99
+    np.testing.assert_allclose(c[no_chords], ct[no_chords], atol=1e-12)
+    # where they differ: a tetrahedron (every neighbour pair is joined) and a boundary vertex
+    tet = jaxmesh.Mesh.from_arrays(np.eye(4)[:, :3] + [[0, 0, 0]] * 4 + np.r_[np.zeros((3, 3)), [[1, 1, 1]]],
+                                   [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    assert np.allclose(stats.clustering(tet), 1.0) and np.allclose(stats.thesis_clustering(tet), 1.0)
+    strip = jaxmesh.Mesh.from_arrays(np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]]),
+                                     [[0, 1, 2], [1, 3, 2]])
+    np.testing.assert_allclose(stats.clustering(strip), [1, 2 / 3, 2 / 3, 1])
+    np.testing.assert_allclose(stats.thesis_clustering(strip), [2, 1, 1, 2])
+
+
+def test_graph_geodesics_match_scipy_dijkstra():
+    mesh = jaxmesh.load(shared_mesh_path("eight.ply"))
+    v, e = np.asarray(mesh.vertices), np.asarray(mesh.edges)
+    g = as_networkx(mesh)
+    for a, b in e:
+        g[a][b]["w"] = float(np.linalg.norm(v[a] - v[b]))
+    src = stats.sample_sources(mesh, 5, seed=3)
+    ours = stats.graph_distances(mesh, src)
+    for row, s in zip(ours, src):
+        ref = nx.single_source_dijkstra_path_length(g, int(s), weight="w")
+        np.testing.assert_allclose(row, by_node(ref, mesh.num_vertices), rtol=1e-12)
+    knn = stats.graph_distances(mesh, src, "knn", k=6)
+    assert np.all(np.isfinite(knn)) and np.all(knn[np.arange(5), src] == 0)
+    np.testing.assert_array_equal(stats.sample_sources(mesh, 5, seed=3), src)   # seeded
+
+
+HEAT_TOLERANCE = 0.015   # mean relative error against great circles on icosphere(4); measured 0.9%
+
+
+def test_heat_method_on_a_sphere_within_stated_tolerance():
+    s = trimesh.creation.icosphere(4)
+    mesh = jaxmesh.Mesh.from_arrays(s.vertices, s.faces)
+    src = stats.sample_sources(mesh, 6, seed=0)
+    v = np.asarray(s.vertices)
+    exact = np.arccos(np.clip(v[src] @ v.T, -1, 1))
+    heat = stats.heat_geodesics(mesh, src)
+    far = exact > 0.1
+    rel = np.abs(heat - exact)[far] / exact[far]
+    assert rel.mean() < HEAT_TOLERANCE
+    edges = stats.graph_distances(mesh, src)
+    assert ((edges - exact)[far] / exact[far]).mean() > 3 * rel.mean()     # the graph is much worse
+    np.testing.assert_allclose(heat[np.arange(6), src], 0, atol=1e-12)
+
+
+def test_mesh_statistics_and_cli(tmp_path, capsys):
+    pytest.importorskip("matplotlib")
+    mesh = jaxmesh.load(shared_mesh_path("eight.ply"))
+    st = stats.mesh_statistics(mesh, sources=20, seed=1)
+    s = st["summary"]
+    assert s["average_degree"] == pytest.approx(2 * 2304 / 766) and s["sources"] == 20   # genus 2: χ = -2
+    assert s["geodesic_edges_mean"] > s["geodesic_heat_mean"] > 0
+    out = tmp_path / "six.png"
+    assert main(["stats", str(shared_mesh_path("eight.ply")), "--json", "--sources", "20", "--seed", "1",
+                 "--plot", str(out)]) == 0
+    printed = json.loads(capsys.readouterr().out)
+    assert printed["average_degree"] == pytest.approx(s["average_degree"])
+    assert printed["geodesic_heat_mean"] == pytest.approx(s["geodesic_heat_mean"])
+    assert out.stat().st_size > 10000
+    assert main(["stats", str(shared_mesh_path("eight.ply")), "--plot", str(out)]) == 1
+    assert "exists" in capsys.readouterr().err
