@@ -7,7 +7,8 @@
   the kNN graph can underestimate it (chords cut through the volume).
 * :func:`heat_geodesics`: the heat method (Crane, Weischedel & Wardetzky 2013)
   on the cotangent Laplacian L_c and lumped mass M:
-  (M - t L_c) u = δ_s with t = ℓ̄²;  X = -∇u / |∇u| per face;
+  (M - t L_c⁺) u = δ_s with t = ℓ̄² (L_c⁺: negative cotangent weights clamped
+  to 0, so that u stays positive — see the code);  X = -∇u / |∇u| per face;
   K φ = b with K = -L_c and b_i = sum_f A_f X_f · ∇ψ_i (the weak divergence);
   φ shifted so that φ(s) = 0.  Both systems are factorised once (sparse LU)
   and every source is one more right-hand side.  Boundaries get the natural
@@ -100,7 +101,11 @@ def heat_geodesics(mesh: Mesh, sources, t: float | None = None) -> np.ndarray:
     ell = np.linalg.norm(v[e[:, 0]] - v[e[:, 1]], axis=1).mean()
     t = ell ** 2 if t is None else t
     lc = jsparse.cotangent_laplacian_matrix(mesh)
-    heat = _spd_factor(sp.diags(mass) - t * lc)
+    # the heat step uses the cotangent weights clamped at 0: M - tL is then an M-matrix, so u > 0
+    # decays monotonically away from the source (obtuse triangles otherwise make u oscillate in
+    # sign far away, and the normalised gradient points the wrong way there)
+    w = jsparse.cotangent_weight_matrix(mesh).maximum(0) * 0.5
+    heat = _spd_factor(sp.diags(mass) - t * (w - sp.diags(np.asarray(w.sum(axis=1)).ravel())))
     # K = -L_c is singular on each component (constants): a tiny mass shift makes it definite
     poisson = _spd_factor(-lc + sp.diags(1e-12 * mass / ell ** 2))
     rhs = np.zeros((n, len(sources)), order="F")
