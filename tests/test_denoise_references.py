@@ -235,3 +235,34 @@ def test_hc_matches_trimesh_filter_humphrey(noisy):
     trimesh.smoothing.filter_humphrey(m, alpha=0.2, beta=0.6, iterations=4)
     out = METHODS["hc"](noisy, alpha=0.2, beta=0.6, iterations=4).vertices
     np.testing.assert_allclose(out, m.vertices, atol=1e-12)
+
+
+def test_boundary_curve_smoothing_matches_numpy_on_an_open_grid():
+    from conftest import grid_arrays
+
+    v, faces = grid_arrays(5, 4, jitter=0.1, seed=4)
+    mesh = jaxmesh.Mesh.from_arrays(v, faces)
+    edge_faces = {}
+    for f in faces:
+        for a, b in ((f[0], f[1]), (f[1], f[2]), (f[2], f[0])):
+            edge_faces[tuple(sorted((a, b)))] = edge_faces.get(tuple(sorted((a, b))), 0) + 1
+    boundary = {e for e, c in edge_faces.items() if c == 1}
+    on_boundary = {i for e in boundary for i in e}
+    nbrs = {i: set() for i in range(len(v))}
+    for a, b in edge_faces:
+        if a not in on_boundary or (a, b) in boundary:
+            nbrs[a].add(b)
+        if b not in on_boundary or (a, b) in boundary:
+            nbrs[b].add(a)
+    x = v.copy()
+    for _ in range(3):
+        x = x + 0.5 * np.array([x[sorted(nbrs[i])].mean(axis=0) - x[i] for i in range(len(x))])
+    out = METHODS["laplacian"](mesh, lam=0.5, iterations=3, boundary="curve").vertices
+    np.testing.assert_allclose(out, x, atol=1e-12)
+    # a boundary vertex never moves off the boundary polygon's plane (z = 0 here), and the free
+    # mode differs from the curve mode only on the boundary
+    free = np.asarray(METHODS["laplacian"](mesh, lam=0.5, iterations=1).vertices)
+    curve = np.asarray(METHODS["laplacian"](mesh, lam=0.5, iterations=1, boundary="curve").vertices)
+    interior = np.array([i not in on_boundary for i in range(len(v))])
+    np.testing.assert_allclose(free[interior], curve[interior], atol=1e-12)
+    assert np.abs(free[~interior] - curve[~interior]).max() > 1e-3

@@ -27,9 +27,13 @@ def main() -> None:
     ap.add_argument("--sigmas", nargs="+", type=float, default=list(SIGMAS))
     ap.add_argument("--resume", action="store_true",
                     help="keep the (mesh, sigma) blocks already complete in best_table.csv")
+    ap.add_argument("--only", nargs="+", metavar="METHOD",
+                    help="recompute only these jaxmesh methods and replace their rows in best_table.csv")
     args = ap.parse_args()
     RESULTS.mkdir(parents=True, exist_ok=True)
     records, done = [], set()
+    if args.only:
+        records = [_typed(r) for r in csv.DictReader(open(RESULTS / "best_table.csv"))]
     if args.resume and (RESULTS / "best_table.csv").is_file():
         old = list(csv.DictReader(open(RESULTS / "best_table.csv")))
         per_block = len(GRIDS) + len(PEERS)
@@ -37,11 +41,7 @@ def main() -> None:
             block = [r for r in old if (r["mesh"], float(r["sigma"])) == key]
             if len(block) >= per_block:
                 done.add(key)
-                for r in block:
-                    r["sigma"] = float(r["sigma"])
-                    for k in ("E_ratio", "angle_at_best_E", "best_angle", "noisy_angle"):
-                        r[k] = float(r[k])
-                    records.append(r)
+                records += [_typed(r) for r in block]
     for mesh_name in args.meshes:
         clean = load(mesh_name)
         for sigma in args.sigmas:
@@ -53,6 +53,8 @@ def main() -> None:
             a0 = float(mean_normal_angle_error(clean, noisy))
             rings = rings_for(noisy)
             entries = [(f"jaxmesh {m}", m, True) for m in GRIDS] + [(p, p, False) for p in PEERS]
+            if args.only:
+                entries = [e for e in entries if e[2] and e[1] in args.only]
             for label, name, ours in entries:
                 t = time.perf_counter()
                 rows = evaluate_method(name, clean, noisy, rings) if ours else evaluate_peer(name, clean, noisy)
@@ -63,7 +65,9 @@ def main() -> None:
                     rows += refine(name, clean, noisy, best[0], rings)
                     best = min(rows, key=lambda r: r[1])
                 best_angle = min(rows, key=lambda r: r[2])
-                records.append({
+                old = [i for i, x in enumerate(records)
+                       if (x["mesh"], x["sigma"], x["method"]) == (mesh_name, sigma, label)]
+                record = {
                     "mesh": mesh_name, "sigma": sigma, "method": label,
                     "E_ratio": best[1] / e0, "angle_at_best_E": best[2],
                     "best_angle": best_angle[2], "noisy_angle": a0,
@@ -72,11 +76,22 @@ def main() -> None:
                     "params_best_angle": {k: (round(float(v), 4) if not isinstance(v, (bool, str)) else v)
                                           for k, v in best_angle[0].items()},
                     "grid_points": len(rows), "seconds": round(time.perf_counter() - t, 2),
-                })
-                r = records[-1]
+                }
+                if old:
+                    records[old[0]] = record
+                else:
+                    records.append(record)
+                r = record
                 print(f"{mesh_name:10s} {sigma:5.2f} {label:28s} E {r['E_ratio']:.4f}  angle "
                       f"{r['angle_at_best_E']:6.2f} / best {r['best_angle']:6.2f}  ({r['seconds']} s)", flush=True)
             write(records)
+
+
+def _typed(r: dict) -> dict:
+    r["sigma"] = float(r["sigma"])
+    for k in ("E_ratio", "angle_at_best_E", "best_angle", "noisy_angle"):
+        r[k] = float(r[k])
+    return r
 
 
 def write(records) -> None:

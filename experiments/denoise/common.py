@@ -27,6 +27,7 @@ SIGMAS = (0.02, 0.1, 0.3)
 TABLE_MESHES = ("cow", "spot", "fandisk", "maxplanck", "camelhead", "bunny")
 
 LOG = np.logspace
+BOUNDARY = ("free", "curve")
 
 
 def load(name: str) -> jaxmesh.Mesh:
@@ -48,10 +49,11 @@ GRIDS = {
     "kernel": ([{"iterations": k} for k in (2, 5, 10)], {"lam": LOG(-1.3, 1.3, 14)}),
     "anisotropic": ([{"iterations": k} for k in (5, 10, 20)],
                     {"dt": (0.1, 0.25, 0.5), "c": LOG(-1, 1, 5)}),
-    "laplacian": ([{"iterations": k} for k in (1, 2, 3, 5, 10, 20)], {"lam": LOG(-1.7, 0, 10)}),
-    "hc": ([{"iterations": k} for k in (1, 2, 5, 10, 20, 40)],
+    "laplacian": ([{"iterations": k, "boundary": b} for k in (1, 2, 3, 5, 10, 20) for b in BOUNDARY],
+                  {"lam": LOG(-1.7, 0, 10)}),
+    "hc": ([{"iterations": k, "boundary": b} for k in (1, 2, 5, 10, 20, 40) for b in BOUNDARY],
            {"alpha": (0.0, 0.1, 0.2, 0.3), "beta": (0.3, 0.5, 0.7, 0.9)}),
-    "taubin": ([{"iterations": k} for k in (1, 2, 5, 10, 20, 40, 80)],
+    "taubin": ([{"iterations": k, "boundary": b} for k in (1, 2, 5, 10, 20, 40, 80) for b in BOUNDARY],
                {"lam": (0.05, 0.1, 0.3, 0.5, 0.7), "kpb": (0.02, 0.05, 0.1)}),
     "cotangent": ([{"iterations": k} for k in (1, 2, 3, 5, 10)], {"dt": LOG(-1.7, 0, 10)}),
     "cotangent_implicit": ([{"iterations": k} for k in (1, 3)], {"dt": LOG(-2.5, 0.7, 12)}),

@@ -15,46 +15,87 @@ Both use the umbrella operator K x_i = (1/d_i) sum_{j~i} x_j - x_i:
   filters on the visual error (trimesh ships it as ``filter_humphrey``).
 
 Translation and scale invariant; the parameters are dimensionless.
+
+Open meshes.  With ``boundary="free"`` (default, the papers' form) a boundary
+vertex averages all its neighbours, which pulls the boundary inwards and
+shrinks holes.  With ``boundary="curve"`` a boundary vertex averages only its
+neighbours along boundary edges, so boundary curves are smoothed as curves
+(MeshLab's default); interior vertices are unchanged.  On the open camel head
+at σ = 0.1ℓ̄ this halves Taubin's best visual error (0.17 -> 0.09 of the noisy
+input's).
 """
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
 
+from .._private import safe_divide, segment_sum_rows, segment_sum_scalars
 from ..mesh import Mesh
 from ..operators import umbrella
 from ._loop import iterate
 
+BOUNDARY_MODES = ("free", "curve")
+
+
+def boundary_curve_weights(mesh: Mesh):
+    """Per directed edge: 1 if it takes part in the boundary-aware average (every edge
+    of an interior vertex; only boundary edges, used by one face, of a boundary vertex)."""
+    count = jax.ops.segment_sum(jnp.ones(mesh.faces.size, jnp.int32), mesh.face_edges.reshape(-1),
+                                num_segments=mesh.num_edges)
+    on_boundary = (count == 1)[mesh.edge_of]
+    boundary_vertex = segment_sum_scalars(on_boundary.astype(jnp.int32), mesh.src, mesh.num_vertices) > 0
+    return jnp.where(boundary_vertex[mesh.src], on_boundary, True)
+
+
+def smoothing_operator(mesh: Mesh, boundary: str = "free"):
+    """x -> K x, the umbrella operator, or its boundary-curve form (module docstring)."""
+    if boundary == "free":
+        return lambda x: umbrella(mesh, x)
+    if boundary != "curve":
+        raise ValueError(f"boundary must be one of {BOUNDARY_MODES}, got {boundary!r}")
+    w = boundary_curve_weights(mesh)
+
+    def op(x):
+        wx = jnp.where(w[:, None], x[..., mesh.dst, :], 0)
+        count = segment_sum_scalars(w.astype(x.dtype), mesh.src, mesh.num_vertices)[:, None]
+        return jnp.where(count > 0, safe_divide(segment_sum_rows(wx, mesh.src, mesh.num_vertices), count) - x, 0)
+
+    return op
+
 __all__ = ["laplacian_smoothing", "taubin_smoothing", "hc_smoothing"]
 
 
-def laplacian_smoothing(mesh: Mesh, lam=0.5, iterations: int = 10) -> Mesh:
+def laplacian_smoothing(mesh: Mesh, lam=0.5, iterations: int = 10, boundary: str = "free") -> Mesh:
     """``iterations`` explicit steps of x <- x + λ K x (umbrella flow)."""
+    k = smoothing_operator(mesh, boundary)
     lam = jnp.asarray(lam, mesh.dtype)[..., None, None]
-    return mesh.with_vertices(iterate(lambda x: x + lam * umbrella(mesh, x), mesh.vertices, iterations))
+    return mesh.with_vertices(iterate(lambda x: x + lam * k(x), mesh.vertices, iterations))
 
 
-def taubin_smoothing(mesh: Mesh, lam=0.5, mu=-0.53, iterations: int = 10) -> Mesh:
+def taubin_smoothing(mesh: Mesh, lam=0.5, mu=-0.53, iterations: int = 10, boundary: str = "free") -> Mesh:
     """``iterations`` Taubin pairs: x <- x + λ K x, then x <- x + μ K x (μ < -λ)."""
+    k = smoothing_operator(mesh, boundary)
     lam = jnp.asarray(lam, mesh.dtype)[..., None, None]
     mu = jnp.asarray(mu, mesh.dtype)[..., None, None]
 
     def step(x):
-        x = x + lam * umbrella(mesh, x)
-        return x + mu * umbrella(mesh, x)
+        x = x + lam * k(x)
+        return x + mu * k(x)
 
     return mesh.with_vertices(iterate(step, mesh.vertices, iterations))
 
 
-def hc_smoothing(mesh: Mesh, alpha=0.1, beta=0.5, iterations: int = 10) -> Mesh:
+def hc_smoothing(mesh: Mesh, alpha=0.1, beta=0.5, iterations: int = 10, boundary: str = "free") -> Mesh:
     """``iterations`` HC-Laplacian steps (Vollmer et al. 1999; module docstring)."""
+    k = smoothing_operator(mesh, boundary)
     alpha = jnp.asarray(alpha, mesh.dtype)[..., None, None]
     beta = jnp.asarray(beta, mesh.dtype)[..., None, None]
     o = mesh.vertices
 
     def step(q):
-        p = q + umbrella(mesh, q)
+        p = q + k(q)
         b = p - (alpha * o + (1 - alpha) * q)
-        return p - (beta * b + (1 - beta) * (b + umbrella(mesh, b)))
+        return p - (beta * b + (1 - beta) * (b + k(b)))
 
     return mesh.with_vertices(iterate(step, o, iterations))

@@ -22,7 +22,7 @@ from .bilateral import bilateral_denoising
 from .curvature import cotangent_flow
 from .geometric_diffusion import geometric_diffusion
 from .kernel_flow import kernel_diffusion
-from .laplacian import hc_smoothing, laplacian_smoothing, taubin_smoothing
+from .laplacian import BOUNDARY_MODES, hc_smoothing, laplacian_smoothing, taubin_smoothing
 from .normal_filtering import normal_filtering
 
 __all__ = ["Param", "Method", "METHODS", "denoise", "diverged"]
@@ -78,6 +78,8 @@ class Method:
         return self.function(mesh, **self.resolve(**params))
 
 
+_BOUNDARY = Param("free", "choice", "boundary vertices: 'free' (all neighbours) or 'curve' (along the boundary)",
+                  choices=BOUNDARY_MODES)
 _RINGS = Param(None, "aux", "precomputed face_rings(mesh), needed by the median under jit")
 
 
@@ -104,16 +106,19 @@ METHODS: dict[str, Method] = {
         Method("laplacian", laplacian_smoothing, {
             "lam": Param(0.5, "continuous", "umbrella step", (0.01, 1.0), True),
             "iterations": _it(10),
+            "boundary": _BOUNDARY,
         }, "Laplacian (umbrella) flow", "Taubin 1995"),
         Method("taubin", taubin_smoothing, {
             "lam": Param(0.5, "continuous", "shrinking step λ > 0", (0.01, 1.0), True),
             "mu": Param(-0.53, "continuous", "inflating step μ < -λ", (-1.0, -0.01)),
             "iterations": _it(10),
+            "boundary": _BOUNDARY,
         }, "Taubin λ|μ low-pass filter", "Taubin 1995"),
         Method("hc", hc_smoothing, {
             "alpha": Param(0.1, "continuous", "pull towards the original positions", (0.0, 1.0)),
             "beta": Param(0.5, "continuous", "pull towards the previous positions", (0.0, 1.0)),
             "iterations": _it(10),
+            "boundary": _BOUNDARY,
         }, "HC Laplacian (extra baseline, not in the thesis)", "Vollmer, Mencl & Müller 1999"),
         Method("cotangent", functools.partial(cotangent_flow, implicit=False), {
             "dt": Param(0.5, "continuous", "normalised explicit step", (0.01, 1.0), True),
