@@ -58,7 +58,7 @@ def main() -> None:
                 rows += [{"figure": "e_vs_lambda", "mesh": name, "sigma": sigma, "iterations": it,
                           "lam": float(l), "E_ratio": float(x)} for l, x in zip(lams, e)]
             ax.axhline(1, color="gray", lw=0.5)
-            ax.set_title(f"{name}, σ = {sigma}ℓ̄", fontsize=9)
+            ax.set_title(f"{name}, σ = {sigma} mean edge", fontsize=9)
             ax.set_xlabel("λ")
             ax.set_ylabel("E / E(noisy)")
             ax2 = axes2[i, j]
@@ -71,7 +71,7 @@ def main() -> None:
                                  "iterations": it, "E_ratio": es[-1]})
                 ax2.semilogy(ITERATIONS, es, label=label, marker=".")
             ax2.axhline(1, color="gray", lw=0.5)
-            ax2.set_title(f"{name}, σ = {sigma}ℓ̄", fontsize=9)
+            ax2.set_title(f"{name}, σ = {sigma} mean edge", fontsize=9)
             ax2.set_xlabel("iterations")
             ax2.set_ylabel("E / E(noisy)")
             print(f"{name} σ={sigma} done", flush=True)

@@ -42,7 +42,7 @@ def main() -> None:
     clean = load(args.mesh)
     noisy = noisy_copy(clean, args.sigma)
     rings = rings_for(noisy)
-    panels = [("original", clean), (f"noisy σ={args.sigma}ℓ̄", noisy)]
+    panels = [("original", clean), (f"noisy σ={args.sigma} mean edge", noisy)]
     for name, params in best.items():
         aux = {"rings": rings} if "rings" in METHODS[name].params else {}
         out = METHODS[name](noisy, **{k: (int(v) if METHODS[name].params[k].kind == "int" else v)

@@ -86,13 +86,13 @@ def main() -> None:
              "bounding-box diagonal. Clustering: the general definition (edges among neighbours); "
              "'differ' counts vertices where the thesis's 2/(d-1) gives another value.", "",
              "| mesh | V | avg degree | degree-6 share | assortativity r | mean clustering | thesis 2/(d-1) | differ | "
-             "geodesic mean (edges / kNN / heat) | geodesic std (heat) | seconds |",
-             "|---|---|---|---|---|---|---|---|---|---|---|"]
+             "geodesic mean (edges / kNN / heat) | geodesic std (heat) |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     for name, s, sec, diag in rows:
         g = " / ".join(f"{s[f'geodesic_{k}_mean'] / diag:.3f}" for k in ("edges", "knn", "heat"))
         lines.append(f"| {name} | {s['vertices']} | {s['average_degree']:.3f} | {s['degree_6_share']:.3f} | "
                      f"{s['assortativity']:.3f} | {s['mean_clustering']:.3f} | {s['mean_thesis_clustering']:.3f} | "
-                     f"{s['clustering_formulas_differ_at']} | {g} | {s['geodesic_heat_std'] / diag:.3f} | {sec:.1f} |")
+                     f"{s['clustering_formulas_differ_at']} | {g} | {s['geodesic_heat_std'] / diag:.3f} |")
     (OUT / "summary.md").write_text("\n".join(lines) + "\n")
     if errs:
         lines = ["# Geodesic estimates against exact geodesic paths", "",

@@ -38,7 +38,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from .._private import det_adjugate_3x3, safe_divide, segment_sum_rows, segment_sum_scalars
+from .._private import safe_divide, segment_sum_rows, segment_sum_scalars
 from ..mesh import Mesh
 from ..operators import neighbor_sum
 from ._loop import iterate
@@ -61,16 +61,47 @@ def neighborhood_covariances(
     return h + jnp.asarray(lam, x.dtype)[..., None, None, None] * jnp.eye(3, dtype=x.dtype)
 
 
+def _symmetric_adjugate(h):
+    """det and the 6 distinct adjugate entries (xx, yy, zz, xy, xz, yz) of symmetric
+    3×3 matrices given by their 6 distinct entries in the same order."""
+    xx, yy, zz, xy, xz, yz = (h[..., k] for k in range(6))
+    co = jnp.stack([yy * zz - yz * yz, xx * zz - xz * xz, xx * yy - xy * xy,
+                    xz * yz - xy * zz, xy * yz - xz * yy, xy * xz - xx * yz], axis=-1)
+    det = xx * co[..., 0] + xy * co[..., 3] + xz * co[..., 4]
+    return det, co
+
+
+def _quadratic(co, d):
+    """d^T C d for symmetric C given by its 6 distinct entries."""
+    dx, dy, dz = d[..., 0], d[..., 1], d[..., 2]
+    return (co[..., 0] * dx * dx + co[..., 1] * dy * dy + co[..., 2] * dz * dz
+            + 2 * (co[..., 3] * dx * dy + co[..., 4] * dx * dz + co[..., 5] * dy * dz))
+
+
 def _kernel_parts(mesh: Mesh, x: Float[Array, "*batch V 3"], lam):
     """(norm_i = det(H_i)^{-1/2} (2π)^{-3/2} per vertex, p_ij = exp(-½ δ^T H_i^{-1} δ)
-    per directed edge), so that κ_ij = norm_i p_ij.  det is floored at the
+    per directed edge, δ_ij = x_j - x_i per directed edge), so that κ_ij = norm_i p_ij.
+
+    One pass over the edges: with δ̄_i = (1/d_i) sum_j δ_ij = c_i - x_i,
+    H_i - λI = sum_j (δ_ij - δ̄_i)(δ_ij - δ̄_i)^T = sum_j δ_ij δ_ij^T - d_i δ̄_i δ̄_i^T,
+    accumulated as 6 + 3 columns of one segment sum (differences, not positions, so
+    the subtraction does not cancel at large coordinates).  det is floored at the
     dtype's smallest normal number so that an underflow cannot give inf/NaN."""
-    det, co = det_adjugate_3x3(neighborhood_covariances(mesh, x, lam))
+    delta = x[..., mesh.dst, :] - x[..., mesh.src, :]
+    dx, dy, dz = delta[..., 0], delta[..., 1], delta[..., 2]
+    cols = jnp.stack([dx * dx, dy * dy, dz * dz, dx * dy, dx * dz, dy * dz, dx, dy, dz], axis=-1)
+    sums = segment_sum_rows(cols, mesh.src, mesh.num_vertices)
+    d = mesh.degree.astype(x.dtype)[:, None]
+    mean = safe_divide(sums[..., 6:], d)
+    mx, my, mz = mean[..., 0], mean[..., 1], mean[..., 2]
+    outer = jnp.stack([mx * mx, my * my, mz * mz, mx * my, mx * mz, my * mz], axis=-1)
+    lam = jnp.asarray(lam, x.dtype)[..., None, None]
+    h = sums[..., :6] - d * outer + lam * jnp.array([1, 1, 1, 0, 0, 0], x.dtype)
+    det, co = _symmetric_adjugate(h)
     det = jnp.maximum(det, jnp.finfo(x.dtype).tiny)
     norm = (2 * jnp.pi) ** -1.5 * jax.lax.rsqrt(det)
-    delta = x[..., mesh.src, :] - x[..., mesh.dst, :]
-    q = jnp.einsum("...hk,...hkl,...hl->...h", delta, co[..., mesh.src, :, :], delta)
-    return norm, jnp.exp(-0.5 * q / det[..., mesh.src])
+    q = _quadratic(co[..., mesh.src, :], delta) / det[..., mesh.src]
+    return norm, jnp.exp(-0.5 * q), delta
 
 
 def kernel_weights(mesh: Mesh, x: Float[Array, "*batch V 3"], lam):
@@ -78,7 +109,7 @@ def kernel_weights(mesh: Mesh, x: Float[Array, "*batch V 3"], lam):
     off-diagonal and diagonal entries of the kernel matrix 𝒦 (eq.10):
     κ_ij = det(H_i)^{-1/2} (2π)^{-3/2} exp(-½ δ^T H_i^{-1} δ), δ = x_i - x_j,
     κ_ii = det(H_i)^{-1/2} (2π)^{-3/2}."""
-    norm, p = _kernel_parts(mesh, x, lam)
+    norm, p, _ = _kernel_parts(mesh, x, lam)
     return norm[..., mesh.src] * p, norm
 
 
@@ -88,7 +119,7 @@ def kernel_step(
     safeguard: bool = True,
 ) -> Float[Array, "*batch V 3"]:
     """One Jacobi iteration of the kernel flow (see the module docstring)."""
-    norm, p = _kernel_parts(mesh, x, lam)
+    norm, p, diff = _kernel_parts(mesh, x, lam)
     d = mesh.degree.astype(x.dtype)
     if variant == "paper":
         s = safe_divide(jnp.ones_like(d), jnp.sqrt(d))[:, None]
@@ -97,7 +128,6 @@ def kernel_step(
         kappa = norm[..., mesh.src] * p
         return x + s * segment_sum_rows(kappa[..., None] * diff, mesh.src, mesh.num_vertices)
     if variant == "random_walk":
-        diff = x[..., mesh.dst, :] - x[..., mesh.src, :]
         pull = segment_sum_rows(p[..., None] * diff, mesh.src, mesh.num_vertices)
         # step_i = norm_i * pull_i / d_i; with the safeguard norm_i * pull_i / max(d_i, norm_i sum_j p_ij),
         # written as pull_i / max(d_i / norm_i, sum_j p_ij) so that a huge norm_i cannot overflow.
