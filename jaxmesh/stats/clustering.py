@@ -37,13 +37,17 @@ __all__ = ["triangle_counts", "clustering", "thesis_clustering", "clustering_by_
 @functools.partial(jax.jit, static_argnums=3)
 def _forward_triangles(u, v, out, n: int):
     """Per vertex, the triangles u -> v, u -> w, v -> w found by intersecting the
-    out-neighbour rows of u and v (fused by XLA; no (E, K, K) array is stored)."""
+    out-neighbour rows of u and v (fused by XLA; no (E, K, K) array is stored).
+    The top vertex w = out[u, a] is credited through its slot: hits are summed per
+    (u, a) with a sorted segment sum (u is grouped), then scattered once per slot."""
     ou, ov = out[u], out[v]                                            # (E, K)
     hit = jnp.any(ou[:, :, None] == ov[:, None, :], axis=-1) & (ou >= 0)
     per_edge = jnp.sum(hit, axis=1, dtype=jnp.int32)
-    t = jax.ops.segment_sum(per_edge, u, n) + jax.ops.segment_sum(per_edge, v, n)
-    tops = jnp.where(hit, ou, n).reshape(-1)                           # w, or the dump slot n
-    return t + jax.ops.segment_sum(jnp.ones_like(tops), tops, n + 1)[:n]
+    t = jax.ops.segment_sum(per_edge, u, n, indices_are_sorted=True)
+    t = t + jax.ops.segment_sum(per_edge, v, n)
+    per_slot = jax.ops.segment_sum(hit.astype(jnp.int32), u, n, indices_are_sorted=True)   # (V, K)
+    tops = jnp.where(out >= 0, out, n).reshape(-1)
+    return t + jax.ops.segment_sum(per_slot.reshape(-1), tops, n + 1)[:n]
 
 
 def triangle_counts(mesh: Mesh) -> np.ndarray:
