@@ -105,3 +105,13 @@ def test_bad_arguments(tetra):
         kernel_diffusion(tetra, 0.5, 1, variant="nope")
     with pytest.raises(ValueError, match="iterations"):
         kernel_diffusion(tetra, 0.5, -1)
+
+
+def test_one_pass_covariances_equal_the_direct_formula(noisy_spot):
+    from jaxmesh.denoise import neighborhood_covariances
+
+    _, noisy = noisy_spot
+    x = noisy.vertices + 100.0      # far from the origin: the one-pass form must not cancel
+    h = neighborhood_covariances(noisy, x, 0.3)           # sum (x_j - c_i)(x_j - c_i)^T + λI, direct
+    _, diag = kernel_weights(noisy.with_vertices(x), x, 0.3)
+    np.testing.assert_allclose(diag, (2 * np.pi) ** -1.5 / np.sqrt(np.linalg.det(np.asarray(h))), rtol=1e-9)
