@@ -24,7 +24,8 @@ from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 
 from ..mesh import Mesh
-from ._graph import adjacency, single
+from .. import sparse as jsparse
+from ._graph import single
 
 __all__ = ["sample_sources", "graph_distances", "heat_geodesics", "geodesic_distances"]
 
@@ -39,10 +40,9 @@ def sample_sources(mesh: Mesh, count: int, seed: int = 0) -> np.ndarray:
 
 
 def _graph(mesh: Mesh, graph: str, k: int) -> sp.csr_matrix:
-    v = np.asarray(mesh.vertices, np.float64)
     if graph == "edges":
-        e = np.asarray(mesh.edges)
-        return adjacency(mesh, np.linalg.norm(v[e[:, 0]] - v[e[:, 1]], axis=1))
+        return jsparse.edge_length_matrix(mesh)
+    v = np.asarray(mesh.vertices, np.float64)
     if graph == "knn":
         dist, idx = cKDTree(v).query(v, k=k + 1)
         rows = np.repeat(np.arange(len(v)), k)
@@ -88,8 +88,6 @@ def heat_geodesics(mesh: Mesh, sources, t: float | None = None) -> np.ndarray:
     """Heat-method distances (S, V) from ``sources`` (module docstring); ``t``
     defaults to ℓ̄².  Vertices unreachable from a source (another component)
     get inf."""
-    from .. import sparse as jsparse
-
     single(mesh)
     sources = np.atleast_1d(np.asarray(sources))
     v, f = np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces)
