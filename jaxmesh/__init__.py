@@ -4,7 +4,7 @@ The public names are re-exported here; each lives in a module of its own
 (see the README for the layout).
 """
 
-from . import data, denoise, geometry, metrics, operators, sparse, topology
+from . import data, denoise, geometry, metrics, operators, sparse, topology, tune
 from .geometry import (
     bounding_box_diagonal,
     corner_angles,
@@ -49,4 +49,5 @@ __all__ = [
     "operators",
     "sparse",
     "topology",
+    "tune",
 ]

@@ -100,6 +100,15 @@ def _bool(text: str) -> bool:
     raise argparse.ArgumentTypeError(f"expected yes/no, got {text!r}")
 
 
+def _float_or_auto(text: str):
+    if text == "auto":
+        return "auto"
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number or 'auto', got {text!r}") from None
+
+
 def _parameter_flags() -> dict[str, tuple[str, object]]:
     """--flag -> (parameter name, type) over every registered method."""
     from .denoise import METHODS
@@ -109,7 +118,7 @@ def _parameter_flags() -> dict[str, tuple[str, object]]:
         for name, p in method.params.items():
             if p.kind == "aux" or name in flags:
                 continue
-            kind = {"int": int, "continuous": float}.get(p.kind)
+            kind = {"int": int, "continuous": _float_or_auto}.get(p.kind)
             if kind is None:
                 kind = _bool if isinstance(p.default, bool) else str
             flags[name] = kind
@@ -127,8 +136,16 @@ def _configure_denoise(p: argparse.ArgumentParser) -> None:
     p.add_argument("--raw-units", action="store_true",
                    help="run in the file's units (default: scaled to a unit bounding-box diagonal and "
                         "back, so that kernel λ means the same for every mesh)")
+    p.add_argument("--tune", action="store_true",
+                   help="tune every continuous parameter of the method (as if each were 'auto')")
+    p.add_argument("--noise-sigma", type=float, metavar="S",
+                   help="noise standard deviation in the file's units, for blind tuning "
+                        "(default: estimated from the mesh)")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
-    p.epilog = "Method parameters are flags named after them (--lam, --iterations, --mu, ...)."
+    p.epilog = ("Method parameters are flags named after them (--lam, --iterations, --mu, ...). "
+                "A continuous parameter given as 'auto' (e.g. --lam auto) is tuned: against "
+                "--reference if given (supervised), else blind (Stein's unbiased risk estimate "
+                "of the visual error, noise from --noise-sigma or estimated).")
 
 
 def _list_methods() -> int:
@@ -155,7 +172,7 @@ def _run_denoise(args) -> int:
         return _list_methods()
     import jax.numpy as jnp
 
-    from .denoise import METHODS, diverged, progress
+    from .denoise import METHODS, diverged
     from .io import load, save
     from .transforms import normalize
 
@@ -163,7 +180,20 @@ def _run_denoise(args) -> int:
         raise CLIError(f"unknown method {args.method!r}; choose one of {', '.join(sorted(METHODS))}")
     method = METHODS[args.method]
     given = {k[2:]: v for k, v in vars(args).items() if k.startswith("p_") and v is not None}
-    params = method.resolve(**given)          # refuses parameters the method does not have
+    auto = [k for k, v in given.items() if v == "auto"]
+    if args.tune:
+        auto += [k for k in method.continuous if k not in given]
+    for k in auto:
+        if k not in method.params:
+            raise CLIError(f"method {args.method!r} has no parameter {k!r}; it takes {sorted(method.params)}")
+        if method.params[k].kind != "continuous":
+            raise CLIError(f"{args.method}: --{k.replace('_', '-')} cannot be 'auto' (not continuous)")
+        given.pop(k, None)
+    params = method.resolve(**given, **{k: method.params[k].default for k in auto})
+    if auto and args.raw_units:
+        raise CLIError("tuning runs in the unit-diagonal frame; drop --raw-units")
+    if args.noise_sigma is not None and not (args.noise_sigma > 0):
+        raise CLIError(f"--noise-sigma must be > 0, got {args.noise_sigma}")
     out = _positional_output(args)
     label, mesh = _load_input(args)
     _check_output(out, args.force)
@@ -177,6 +207,66 @@ def _run_denoise(args) -> int:
     else:
         work, centre, scale = normalize(mesh, return_transform=True)
         transform = (centre, scale)
+    tuned = None
+    if auto:
+        from .tune import tune
+
+        start = time.perf_counter()
+        fixed = {k: v for k, v in params.items() if k not in auto and method.params[k].kind != "aux"}
+        tuned = tune(mesh, reference, args.method, names=auto, sigma=args.noise_sigma, **fixed)
+        params.update({k: float(v) for k, v in tuned.params.items()})
+        seconds = time.perf_counter() - start
+        result = tuned.mesh
+        work = mesh
+    if tuned is None:
+        result, seconds = _run_method(args, method, params, work)
+    if bool(diverged(work, result)):
+        raise CLIError(f"{args.method} diverged (non-finite or exploding coordinates) with {params}; "
+                       "nothing written. Use a larger --lam, fewer --iterations or a smaller step")
+    if transform is not None and tuned is None:
+        centre, scale = transform
+        result = result.with_vertices(result.vertices * scale + centre)
+    save(result, out, overwrite=args.force)
+
+    summary = {"input": label, "output": out, "method": args.method,
+               "params": {k: v for k, v in params.items() if method.params[k].kind != "aux"},
+               "seconds": round(seconds, 3)}
+    if tuned is not None:
+        summary["tuned"] = {"names": auto, "mode": "blind" if reference is None else "supervised",
+                            "evaluations": int(tuned.evaluations), "converged": bool(tuned.converged),
+                            "relative_loss": float(tuned.loss)}
+        if reference is None:
+            summary["tuned"]["noise_sigma"] = float(tuned.sigma)
+            summary["tuned"]["estimated_visual_error"] = float(tuned.error)
+    if reference is not None:
+        summary["before"] = _errors(reference, mesh)
+        summary["after"] = _errors(reference, result)
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        ps = " ".join(f"{k}={v:.6g}" if isinstance(v, float) else f"{k}={v}"
+                      for k, v in summary["params"].items())
+        print(f"{label} -> {out}: {args.method} {ps} ({seconds:.2f} s)")
+        if tuned is not None:
+            t = summary["tuned"]
+            how = (f"blind, noise sigma {t['noise_sigma']:.4g} "
+                   f"({'given' if args.noise_sigma else 'estimated'}), "
+                   f"estimated visual error {t['estimated_visual_error']:.6g}" if reference is None
+                   else "supervised against the reference")
+            print(f"  tuned {', '.join(auto)} ({how}; {t['evaluations']} flow evaluations"
+                  f"{'' if t['converged'] else ', NOT converged'})")
+        if reference is not None:
+            for key in ("visual_error", "normal_angle_deg"):
+                b, a = summary["before"][key], summary["after"][key]
+                print(f"  {key:<17} before {b:.6g}  after {a:.6g}  ({a / b:.3f}x)" if b else
+                      f"  {key:<17} before {b:.6g}  after {a:.6g}")
+    return 0
+
+
+def _run_method(args, method, params, work):
+    """Run the method with a progress bar; (result, seconds)."""
+    from .denoise import progress
+
     start = time.perf_counter()
     total = params.get("iterations", 1)
     try:
@@ -189,32 +279,7 @@ def _run_denoise(args) -> int:
         result.vertices.block_until_ready()
     if bar is not None:
         bar.close()
-    seconds = time.perf_counter() - start
-    if bool(diverged(work, result)):
-        raise CLIError(f"{args.method} diverged (non-finite or exploding coordinates) with {params}; "
-                       "nothing written. Use a larger --lam, fewer --iterations or a smaller step")
-    if transform is not None:
-        centre, scale = transform
-        result = result.with_vertices(result.vertices * scale + centre)
-    save(result, out, overwrite=args.force)
-
-    summary = {"input": label, "output": out, "method": args.method,
-               "params": {k: v for k, v in params.items() if method.params[k].kind != "aux"},
-               "seconds": round(seconds, 3)}
-    if reference is not None:
-        summary["before"] = _errors(reference, mesh)
-        summary["after"] = _errors(reference, result)
-    if args.json:
-        print(json.dumps(summary))
-    else:
-        ps = " ".join(f"{k}={v}" for k, v in summary["params"].items())
-        print(f"{label} -> {out}: {args.method} {ps} ({seconds:.2f} s)")
-        if reference is not None:
-            for key in ("visual_error", "normal_angle_deg"):
-                b, a = summary["before"][key], summary["after"][key]
-                print(f"  {key:<17} before {b:.6g}  after {a:.6g}  ({a / b:.3f}x)" if b else
-                      f"  {key:<17} before {b:.6g}  after {a:.6g}")
-    return 0
+    return result, time.perf_counter() - start
 
 
 DENOISE = ("denoise a mesh with any registered method", _configure_denoise, _run_denoise)

@@ -140,3 +140,38 @@ def test_list_methods_and_demo(capsys, tmp_path):
         "bunny_clean.ply", "bunny_kernel.ply", "bunny_noisy.ply", "bunny_taubin.ply"]
     assert main(["demo", "--out", str(tmp_path)]) == 1
     assert main(["demo", "--out", str(tmp_path), "--force"]) == 0
+
+
+def test_denoise_lam_auto_blind_and_supervised(capsys, tmp_path):
+    import jaxmesh
+    from jaxmesh.tune import tune
+
+    noisy, clean = str(tmp_path / "noisy.ply"), str(tmp_path / "clean.ply")
+    assert main(["noise", "--sample", "spot", noisy, "--sigma", "0.1", "--seed", "2"]) == 0
+    assert main(["noise", "--sample", "spot", clean, "--sigma", "0"]) == 0
+    capsys.readouterr()
+    out = str(tmp_path / "sup.ply")
+    assert main(["denoise", noisy, out, "--lam", "auto", "--reference", clean, "--json"]) == 0
+    s = json.loads(capsys.readouterr().out)
+    assert s["tuned"]["mode"] == "supervised" and s["tuned"]["names"] == ["lam"]
+    want = tune(jaxmesh.load(noisy), jaxmesh.load(clean))
+    assert s["params"]["lam"] == pytest.approx(float(want.params["lam"]), rel=1e-9)
+    assert s["after"]["visual_error"] == pytest.approx(float(want.error), rel=1e-9)
+    np.testing.assert_allclose(jaxmesh.load(out).vertices, want.mesh.vertices, atol=1e-12)
+    blind = str(tmp_path / "blind.ply")
+    assert main(["denoise", noisy, blind, "--lam", "auto"]) == 0
+    text = capsys.readouterr().out
+    assert "tuned lam (blind, noise sigma" in text and "estimated)" in text
+    assert main(["denoise", noisy, str(tmp_path / "t.ply"), "--method", "taubin", "--tune",
+                 "--reference", clean, "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["tuned"]["names"] == ["lam", "mu"]
+    # refusals
+    assert main(["denoise", noisy, str(tmp_path / "x.ply"), "--method", "bilateral", "--lam", "auto"]) == 1
+    assert "has no parameter 'lam'" in capsys.readouterr().err
+    assert main(["denoise", noisy, str(tmp_path / "x.ply"), "--lam", "auto", "--raw-units"]) == 1
+    assert "drop --raw-units" in capsys.readouterr().err
+    assert main(["denoise", noisy, str(tmp_path / "x.ply"), "--lam", "auto", "--noise-sigma", "-1"]) == 1
+    assert "--noise-sigma must be > 0" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as e:
+        main(["denoise", noisy, str(tmp_path / "x.ply"), "--lam", "often"])
+    assert e.value.code == 2

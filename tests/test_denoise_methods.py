@@ -83,8 +83,14 @@ def test_scale_invariance(noisy_spot, name):
     assert_same_up_to_median_ties(name, b, a)
 
 
+def _slow_if(heavy, name, *rest):
+    """Cases over ~25 s (FEM / CG inside, slow to compile) run with -m slow; every method
+    keeps a finite-difference check in the default run (positions, below)."""
+    return pytest.param(name, *rest, marks=[pytest.mark.slow] if name in heavy else [])
+
+
 def _continuous_cases():
-    return [(n, p) for n in NAMES for p in METHODS[n].continuous]
+    return [_slow_if(("geometric",), n, p) for n in NAMES for p in METHODS[n].continuous]
 
 
 @pytest.mark.parametrize("name,param", _continuous_cases())
@@ -110,7 +116,8 @@ def test_gradient_in_the_positions(small_sphere, name):
     check_grads(loss, (small_sphere.vertices,), order=1, modes=("rev",), atol=1e-5, rtol=1e-4)
 
 
-@pytest.mark.parametrize("name", ["kernel", "taubin", "cotangent_implicit", "bilateral", "geometric"])
+@pytest.mark.parametrize("name", [_slow_if(("geometric", "cotangent_implicit"), n) for n in
+                                  ["kernel", "taubin", "cotangent_implicit", "bilateral", "geometric"]])
 def test_float32_gradients_are_finite_and_close_to_float64(small_sphere, name):
     method = METHODS[name]
     param = method.continuous[0]

@@ -1,0 +1,19 @@
+"""Automatic tuning of the denoisers' parameters (λ of the kernel flow first).
+
+Supervised (a clean mesh in hand) or blind (Stein's unbiased risk estimate of
+the visual error, with the noise σ given or estimated from the mesh), for one
+mesh, a batch of meshes in one vmapped call, or one setting shared by a
+training set.  See :mod:`jaxmesh.tune.tuner` for the search.
+"""
+
+from .noise_level import estimate_noise, umbrella_square_row_norms
+from .objectives import OBJECTIVES, noisy_visual_error_expectation, relative_error, sure_visual_error
+from .space import Coordinate, search_space
+from .tuner import TuneResult, frame, tune, tune_batch, tune_lambda, tune_shared
+
+__all__ = [
+    "tune", "tune_lambda", "tune_batch", "tune_shared", "TuneResult", "frame",
+    "estimate_noise", "umbrella_square_row_norms",
+    "OBJECTIVES", "relative_error", "sure_visual_error", "noisy_visual_error_expectation",
+    "Coordinate", "search_space",
+]
