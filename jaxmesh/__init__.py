@@ -4,7 +4,7 @@ The public names are re-exported here; each lives in a module of its own
 (see the README for the layout).
 """
 
-from . import data, denoise, geometry, metrics, operators, sparse, topology, tune
+from . import attacks, data, denoise, geometry, hash, metrics, operators, sparse, topology, tune
 from .geometry import (
     bounding_box_diagonal,
     corner_angles,
@@ -42,6 +42,7 @@ __all__ = [
     "vertex_normals",
     "vertex_areas",
     "bounding_box_diagonal",
+    "attacks",
     "data",
     "denoise",
     "geometry",

@@ -21,6 +21,7 @@ __all__ = ["main", "COMMANDS"]
 
 
 from .cli_denoise import DEMO, DENOISE, NOISE, CLIError
+from .cli_hash import HASH
 
 
 def _mesh_source(args) -> list[tuple[str, Callable]]:
@@ -164,6 +165,7 @@ COMMANDS: dict[str, tuple[str, Callable, Callable]] = {
     "demo": DEMO,
     "stats": ("degree, assortativity, clustering, geodesic and spectral statistics (ch.5)",
               _configure_stats, _run_stats),
+    "hash": HASH,
 }
 
 

@@ -5,8 +5,8 @@ and the peers (trimesh, Open3D, PyMeshLab), all tuned with the clean mesh in han
 from __future__ import annotations
 
 import itertools
+import sys
 import time
-import warnings
 from pathlib import Path
 
 import jax
@@ -17,11 +17,13 @@ import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
 import jaxmesh  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from shared_meshes import load as load_shared  # noqa: E402
 from jaxmesh.denoise import METHODS, face_rings  # noqa: E402
 from jaxmesh.metrics import mean_normal_angle_error, visual_error  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
-SHARED = ROOT.parent / "shared" / "meshes"
 RESULTS = ROOT / "experiments" / "results" / "denoise"
 SIGMAS = (0.02, 0.1, 0.3)
 TABLE_MESHES = ("cow", "spot", "fandisk", "maxplanck", "camelhead", "bunny")
@@ -31,12 +33,8 @@ BOUNDARY = ("free", "curve")
 
 
 def load(name: str) -> jaxmesh.Mesh:
-    path = SHARED / f"{name}.ply"
-    if not path.is_file():
-        raise SystemExit(f"{path} not found: these experiments need ../shared/meshes beside the repo")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", jaxmesh.MeshWarning)
-        return jaxmesh.normalize(jaxmesh.load(path, dtype=np.float64))
+    """A shared mesh scaled to a unit bounding-box diagonal."""
+    return jaxmesh.normalize(load_shared(name))
 
 
 def noisy_copy(clean: jaxmesh.Mesh, sigma: float, seed: int = 0) -> jaxmesh.Mesh:

@@ -16,8 +16,8 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
-import warnings
 from pathlib import Path
 
 import jax
@@ -27,24 +27,15 @@ jax.config.update("jax_enable_x64", True)
 import numpy as np  # noqa: E402
 
 import jaxmesh  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from shared_meshes import MESHES, load  # noqa: E402
 from jaxmesh.denoise import METHODS, kernel_diffusion  # noqa: E402
 from jaxmesh.tune import estimate_noise, frame, relative_error, tune  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
-SHARED = ROOT.parent / "shared" / "meshes"
 OUT = ROOT / "experiments" / "results" / "tune"
-MESHES = ("eight", "cow", "spot", "fertility", "maxplanck", "fandisk", "shark", "human", "camelhead",
-          "bunny", "armadillo", "igea")
 SIGMAS = (0.02, 0.1, 0.3)
-
-
-def load(name: str) -> jaxmesh.Mesh:
-    path = SHARED / f"{name}.ply"
-    if not path.is_file():
-        raise SystemExit(f"{path} not found: this experiment needs ../shared/meshes beside the repo")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", jaxmesh.MeshWarning)
-        return jaxmesh.load(path, dtype=np.float64)
 
 
 def timed(f, *args, **kw):

@@ -1,0 +1,92 @@
+"""The hash result object and the similarity ρ (thesis ch.4 eq.4)."""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+
+__all__ = ["MeshHash", "cosine_similarity", "similarity"]
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class MeshHash:
+    """A mesh's hash and what it was made of.
+
+    * ``kind``: ``"thesis"`` (:func:`jaxmesh.hash.mesh_hash`) or ``"robust"``
+      (:func:`jaxmesh.hash.robust_hash`);
+    * ``vector``: the hash h (float64); for ``"thesis"`` h = (μ_1, …, μ_s) in the
+      canonical part order (which may hold ``inf`` when a μ_k overflows float64;
+      ``log_vector`` = log μ_k is always finite and ρ is computed from it);
+    * ``params``: the parameters that made it (so two hashes can be checked to be
+      comparable);
+    * ``parts``: per-part arrays in canonical order (``sizes`` m_k, ``mst_lengths``
+      L*, ``entropies`` ξ_k, ``eigenvalues``), empty for ``"robust"``;
+    * ``labels``: (V,) canonical part of every vertex, or ``None``.
+    """
+
+    kind: str
+    vector: np.ndarray
+    log_vector: np.ndarray | None = None
+    params: dict[str, Any] = dataclasses.field(default_factory=dict)
+    parts: dict[str, Any] = dataclasses.field(default_factory=dict)
+    labels: np.ndarray | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready summary (no per-vertex labels, no eigenvalue lists)."""
+        out: dict[str, Any] = {"kind": self.kind, "params": dict(self.params),
+                               "vector": [float(x) for x in self.vector]}
+        if self.log_vector is not None:
+            out["log_vector"] = [float(x) for x in self.log_vector]
+        for key in ("sizes", "mst_lengths", "entropies"):
+            if key in self.parts:
+                out[key] = [x.item() for x in np.asarray(self.parts[key])]
+        return out
+
+    def __len__(self) -> int:
+        return len(self.vector)
+
+
+def cosine_similarity(h1, h2) -> float:
+    """ρ = |h₁ · h₂| / (‖h₁‖ ‖h₂‖) (thesis ch.4 eq.4); 0 if either vector is zero."""
+    a = np.asarray(h1, np.float64).ravel()
+    b = np.asarray(h2, np.float64).ravel()
+    if a.shape != b.shape:
+        raise ValueError(f"hash vectors differ in length: {a.shape[0]} vs {b.shape[0]}")
+    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
+        raise ValueError("hash vectors must be finite (compare MeshHash objects to use log μ)")
+    na, nb = np.linalg.norm(a), np.linalg.norm(b)
+    if na == 0 or nb == 0:
+        return 0.0
+    return float(min(abs(a @ b) / (na * nb), 1.0))
+
+
+def _scaled(h: MeshHash) -> np.ndarray:
+    """μ / max μ from log μ: the same direction as h, never overflowing."""
+    lv = np.asarray(h.log_vector, np.float64)
+    return np.exp(lv - lv.max())
+
+
+def similarity(h1, h2) -> float:
+    """ρ between two hashes, in [0, 1], 1 = identical.
+
+    * two ``"thesis"`` hashes (or two plain vectors): the thesis's normalised
+      correlation ρ (eq.4), computed from log μ so that it never overflows;
+    * two ``"robust"`` hashes: :func:`jaxmesh.hash.robust.robust_similarity`.
+
+    Raises ``ValueError`` for hashes of different kinds or parameters.
+    """
+    if isinstance(h1, MeshHash) and isinstance(h2, MeshHash):
+        if h1.kind != h2.kind:
+            raise ValueError(f"cannot compare a {h1.kind!r} hash with a {h2.kind!r} hash")
+        if h1.params != h2.params:
+            raise ValueError(f"hashes made with different parameters: {h1.params} vs {h2.params}")
+        if h1.kind == "robust":
+            from .robust import robust_similarity
+
+            return robust_similarity(h1.vector, h2.vector)
+        return cosine_similarity(_scaled(h1), _scaled(h2))
+    if isinstance(h1, MeshHash) or isinstance(h2, MeshHash):
+        raise ValueError("compare two MeshHash objects or two plain vectors, not one of each")
+    return cosine_similarity(h1, h2)
