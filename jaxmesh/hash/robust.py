@@ -54,7 +54,7 @@ from .result import MeshHash
 __all__ = ["robust_hash", "robust_similarity", "affine_normalize", "HALF_DISTANCE", "THRESHOLD"]
 
 #: Distance at which ρ = 1/2 (see the module docstring; fitted in experiments/hash).
-HALF_DISTANCE = 0.043
+HALF_DISTANCE = 0.041
 #: ρ at or above which two robust hashes are judged to be the same model.
 THRESHOLD = 0.5
 
