@@ -183,6 +183,17 @@ def test_similarity_eq4_by_hand():
     assert verdict(0.995, "thesis") and not verdict(0.4, "robust")
 
 
+def test_overflowing_mu_is_compared_in_log_space():
+    from jaxmesh.hash import MeshHash
+
+    with np.errstate(over="ignore"):
+        big = MeshHash("thesis", np.exp([800.0, 799.0]), np.array([800.0, 799.0]))
+    small = MeshHash("thesis", np.exp([1.0, 0.0]), np.array([1.0, 0.0]))
+    assert similarity(big, small) == pytest.approx(1.0)  # the same direction (e, 1)
+    assert big.to_dict()["vector"] == [None, None]
+    json.dumps(big.to_dict(), allow_nan=False)
+
+
 # ---------------------------------------------------------------- the robust hash
 
 

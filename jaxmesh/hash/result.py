@@ -34,9 +34,10 @@ class MeshHash:
     labels: np.ndarray | None = None
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready summary (no per-vertex labels, no eigenvalue lists)."""
+        """JSON-ready summary (no per-vertex labels, no eigenvalue lists); a μ_k that
+        overflowed float64 is written as ``null`` (its ``log_vector`` entry is finite)."""
         out: dict[str, Any] = {"kind": self.kind, "params": dict(self.params),
-                               "vector": [float(x) for x in self.vector]}
+                               "vector": [float(x) if np.isfinite(x) else None for x in self.vector]}
         if self.log_vector is not None:
             out["log_vector"] = [float(x) for x in self.log_vector]
         for key in ("sizes", "mst_lengths", "entropies"):
