@@ -100,7 +100,7 @@ def test_tuning_loss_gradients_match_finite_differences(blind):
                 atol=1e-6, rtol=1e-4)
 
 
-@pytest.mark.parametrize("blind", [False, True])
+@pytest.mark.parametrize("blind", [False, pytest.param(True, marks=pytest.mark.slow)])
 def test_tuned_result_is_scale_free(spot_pair, blind):
     clean, noisy = (sphere(2), jaxmesh.add_noise(sphere(2), 0.2, 1)) if blind else spot_pair
     shift = jnp.array([3.0, -1.0, 2.0])
@@ -138,6 +138,7 @@ def test_batch_of_noisy_copies_of_one_mesh(spot_pair):
     np.testing.assert_allclose(outs[1].vertices, one.mesh.vertices, atol=1e-10)
 
 
+@pytest.mark.slow  # 14 s; kept out of the default run for the CI budget
 def test_shared_setting_is_the_single_one_for_one_mesh_and_transfers(spot_pair):
     clean, noisy = spot_pair
     alone = tune(noisy, clean)
@@ -208,6 +209,7 @@ def test_noise_estimate_recovers_sigma_and_is_equivariant():
     assert estimate_noise(clean) < 0.02 * ell    # a smooth clean sphere reads as (almost) noise-free
 
 
+@pytest.mark.slow  # 15 s; the experiment (experiments/tune) measures this on six meshes
 def test_blind_tuning_with_the_true_sigma_lands_near_the_supervised_optimum(spot_pair):
     clean, noisy = spot_pair
     sup = tune(noisy, clean)
