@@ -49,6 +49,7 @@ import scipy.sparse as sp
 import scipy.special
 
 from ..mesh import Mesh
+from ..sparse import umbrella_matrix
 from .result import MeshHash
 
 __all__ = ["robust_hash", "robust_similarity", "affine_normalize", "HALF_DISTANCE", "THRESHOLD"]
@@ -61,19 +62,9 @@ THRESHOLD = 0.5
 _SHELL_WIDTH = 0.3
 
 
-def _taubin_host(v: np.ndarray, f: np.ndarray, iterations: int,
+def _taubin_host(v: np.ndarray, k: sp.csr_matrix, iterations: int,
                  lam: float = 0.5, mu: float = -0.53) -> np.ndarray:
     """x <- x + λ K x, then x <- x + μ K x, ``iterations`` times (K the umbrella matrix)."""
-    if iterations <= 0:
-        return v
-    n = len(v)
-    i = f[:, [0, 1, 2, 1, 2, 0]].ravel()
-    j = f[:, [1, 2, 0, 0, 1, 2]].ravel()
-    a = sp.csr_matrix((np.ones(len(i)), (i, j)), shape=(n, n))
-    a.data[:] = 1.0  # duplicates (an edge of two faces) count once
-    deg = np.asarray(a.sum(axis=1)).ravel()
-    k = sp.diags(np.divide(1.0, deg, out=np.zeros(n), where=deg > 0)) @ a
-    k = (k - sp.diags((deg > 0).astype(float))).tocsr()
     x = v.copy()
     for _ in range(int(iterations)):
         x = x + lam * (k @ x)
@@ -145,7 +136,7 @@ def robust_hash(mesh: Mesh, *, samples: int = 40000, degree: int = 6, shells: in
             raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
     v = np.asarray(mesh.vertices, np.float64)
     f = np.asarray(mesh.faces, np.int64)
-    x, area = affine_normalize(_taubin_host(v, f, smoothing), f)
+    x, area = affine_normalize(_taubin_host(v, umbrella_matrix(mesh), smoothing), f)
     points = _sample(x, f, area, int(samples), int(seed))
     radii = np.linspace(0.3, 2.7, int(shells))
     feats = shell_energies(points, int(degree), radii)
