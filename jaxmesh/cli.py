@@ -21,6 +21,7 @@ __all__ = ["main", "COMMANDS"]
 
 
 from .cli_denoise import DEMO, DENOISE, NOISE, CLIError
+from .cli_compress import COMPRESS, DECOMPRESS
 from .cli_hash import HASH
 
 
@@ -166,6 +167,8 @@ COMMANDS: dict[str, tuple[str, Callable, Callable]] = {
     "stats": ("degree, assortativity, clustering, geodesic and spectral statistics (ch.5)",
               _configure_stats, _run_stats),
     "hash": HASH,
+    "compress": COMPRESS,
+    "decompress": DECOMPRESS,
 }
 
 

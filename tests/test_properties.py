@@ -23,7 +23,7 @@ def random_meshes(draw):
     return jaxmesh.Mesh.from_arrays(v, f, warn=False)
 
 
-@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(random_meshes())
 def test_operator_properties(mesh):
     x = mesh.vertices

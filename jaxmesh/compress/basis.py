@@ -1,0 +1,185 @@
+"""Spectral bases of a mesh graph, reproducible bit for bit (thesis ch.3 §3.2–3.3).
+
+Two bases, both of the vertex graph (connectivity only):
+
+* **umbrella** (the thesis): eigenvectors of K = D⁻¹A − I (eq.2).  K is similar
+  to the symmetric S = D^{-1/2} A D^{-1/2} − I = −𝓛, so with 𝓛u = νu the
+  eigenpairs of K are (μ = −ν, b = D^{-1/2}u), μ ∈ [−2, 0].  The basis keeps
+  the r eigenvalues of smallest |μ| (SPEC ch.3 resolution), the constant first.
+  The columns are D-orthonormal (BᵀDB = I), not orthonormal, hence eq.5's
+  pseudo-inverse.
+* **laplacian** (Karni & Gotsman 2000): eigenvectors of L = D − A with the r
+  smallest eigenvalues, orthonormal.
+
+An isolated vertex (degree 0, e.g. in a patch) is its own component: its row of
+𝓛 is zero and D is taken as 1 there.
+
+**Reproducibility.**  A decoder rebuilds the basis from the connectivity, so the
+basis must not depend on the solver's whims:
+
+* start vectors are fixed (a counter-based hash, identical on every machine and
+  numpy version);
+* eigenvalues closer than ``CLUSTER_RTOL`` times the spectrum's bound are one
+  *cluster* (symmetric meshes have exactly repeated eigenvalues, and then any
+  rotation of the eigenvectors is as valid as another).  r is extended to the
+  end of a cluster it would cut, and each cluster's vectors are replaced by the
+  canonical basis Q of the QR factorisation (diag R > 0) of U Uᵀ G, G fixed
+  vectors: U Uᵀ is the same whatever basis the solver returned, so Q is too;
+* for a single eigenvector that is its sign, fixed by uᵀg > 0.
+
+Solvers: dense ``scipy.linalg.eigh`` (only the wanted eigenpairs) up to
+``dense_max`` vertices, else ARPACK shift-invert ``eigsh`` around −0.01 (below
+the spectrum, so the factorisation is definite).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+__all__ = [
+    "SpectralBasis",
+    "KINDS",
+    "CLUSTER_RTOL",
+    "fixed_vectors",
+    "graph_basis",
+    "spectral_basis",
+    "adjacency_from_faces",
+]
+
+KINDS = ("umbrella", "laplacian")
+CLUSTER_RTOL = 1e-8
+_PAD = 8  # extra eigenpairs computed to see whether the last cluster goes on
+
+
+@dataclass(frozen=True)
+class SpectralBasis:
+    """``values`` (r,): eigenvalues (umbrella: μ of K in [−2, 0], nearest 0 first;
+    laplacian: λ of L, ascending); ``vectors`` (V, r): the basis B_r; ``kind``."""
+
+    values: np.ndarray
+    vectors: np.ndarray
+    kind: str
+
+    @property
+    def r(self) -> int:
+        return self.vectors.shape[1]
+
+
+def fixed_vectors(m: int, k: int, salt: int = 0) -> np.ndarray:
+    """(m, k) pseudo-random values in [−1, 1), the same on every machine:
+    splitmix64 of (row, column, salt), in numpy's wrapping uint64 arithmetic."""
+    i = np.arange(m, dtype=np.uint64)[:, None]
+    j = np.arange(k, dtype=np.uint64)[None, :]
+    with np.errstate(over="ignore"):
+        z = i * np.uint64(0x9E3779B97F4A7C15) + (j + np.uint64(salt) * np.uint64(65537)) * np.uint64(0xD1B54A32D192ED03)
+        z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+        z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+        z = z ^ (z >> np.uint64(31))
+    return (z >> np.uint64(11)).astype(np.float64) * 2.0 ** -52 - 1.0
+
+
+def adjacency_from_faces(faces: np.ndarray, num_vertices: int) -> sp.csr_matrix:
+    """Symmetric 0/1 vertex adjacency of a triangle list."""
+    f = np.asarray(faces, np.int64)
+    a = np.concatenate([f[:, 0], f[:, 1], f[:, 2]])
+    b = np.concatenate([f[:, 1], f[:, 2], f[:, 0]])
+    adj = sp.csr_matrix((np.ones(2 * len(a)), (np.r_[a, b], np.r_[b, a])), shape=(num_vertices,) * 2)
+    adj.data[:] = 1.0
+    return adj
+
+
+def _operator(adjacency: sp.csr_matrix, kind: str) -> tuple[sp.csr_matrix, np.ndarray, float]:
+    """(symmetric M whose smallest eigenpairs we want, D (clamped to 1), bound on M's spectrum)."""
+    d = np.asarray(adjacency.sum(axis=1)).ravel()
+    if kind == "laplacian":
+        return (sp.diags(d) - adjacency).tocsr(), d, 2.0 * max(float(d.max()), 1.0)
+    if kind == "umbrella":
+        dc = np.where(d > 0, d, 1.0)
+        s = 1.0 / np.sqrt(dc)
+        mat = sp.diags((d > 0).astype(np.float64)) - sp.diags(s) @ adjacency @ sp.diags(s)
+        return mat.tocsr(), dc, 2.0
+    raise ValueError(f"kind must be one of {KINDS}, got {kind!r}")
+
+
+def _smallest(mat: sp.csr_matrix, k: int, dense: bool) -> tuple[np.ndarray, np.ndarray]:
+    n = mat.shape[0]
+    if dense or k >= n - 1:
+        w, u = scipy.linalg.eigh(mat.toarray(), subset_by_index=[0, min(k, n) - 1], driver="evx")
+        return w, u
+    v0 = fixed_vectors(n, 1, salt=7)[:, 0]
+    w, u = spla.eigsh(mat.tocsc(), k=k, sigma=-1e-2, which="LM", v0=v0, tol=0)
+    order = np.argsort(w, kind="stable")
+    return w[order], u[:, order]
+
+
+def _clusters(w: np.ndarray, tol: float) -> list[tuple[int, int]]:
+    out = []
+    s = 0
+    for i in range(1, len(w) + 1):
+        if i == len(w) or w[i] - w[i - 1] > tol:
+            out.append((s, i))
+            s = i
+    return out
+
+
+def _canonical(u: np.ndarray, w: np.ndarray, tol: float) -> np.ndarray:
+    """Canonical eigenvectors: one per cluster rotation and sign (see module doc)."""
+    m = u.shape[0]
+    g1 = fixed_vectors(m, 1, salt=1)[:, 0]
+    out = np.empty_like(u)
+    for s, e in _clusters(w, tol):
+        if e - s == 1:
+            x = u[:, s]
+            out[:, s] = x if x @ g1 >= 0 else -x
+            continue
+        uc = u[:, s:e]
+        y = uc @ (uc.T @ fixed_vectors(m, e - s, salt=2 + s))
+        q, rr = np.linalg.qr(y)
+        out[:, s:e] = q * np.where(np.diag(rr) < 0, -1.0, 1.0)
+    return out
+
+
+def graph_basis(adjacency: sp.csr_matrix, r: int, kind: str = "umbrella", *,
+                dense_max: int = 1200, extend_clusters: bool = True) -> SpectralBasis:
+    """The r-vector basis of a graph given by its symmetric adjacency (see module doc).
+
+    ``r`` is clipped to [1, V]; with ``extend_clusters`` it grows to the end of
+    an eigenvalue cluster it would otherwise cut (the basis then has more than
+    r columns), so the spanned space is well defined.
+    """
+    n = adjacency.shape[0]
+    if n == 0:
+        raise ValueError("empty graph")
+    r = int(min(max(int(r), 1), n))
+    mat, d, bound = _operator(adjacency, kind)
+    tol = CLUSTER_RTOL * bound
+    dense = n <= dense_max
+    k = min(n, r + _PAD)
+    while True:
+        w, u = _smallest(mat, k, dense)
+        end = r
+        if extend_clusters:
+            while end < len(w) and w[end] - w[end - 1] <= tol:
+                end += 1
+        if end < len(w) or len(w) == n:
+            break
+        k = min(n, 2 * k)  # the cluster runs past what we computed: compute more
+    w, u = w[:end], u[:, :end]
+    u = _canonical(u, w, tol)
+    if kind == "umbrella":
+        return SpectralBasis(values=-w, vectors=u / np.sqrt(d)[:, None], kind=kind)
+    return SpectralBasis(values=w, vectors=u, kind=kind)
+
+
+def spectral_basis(mesh, r: int, kind: str = "umbrella", *, dense_max: int = 1200,
+                   extend_clusters: bool = True) -> SpectralBasis:
+    """:func:`graph_basis` of a :class:`~jaxmesh.Mesh`'s vertex graph (r ≥ 1 columns)."""
+    if mesh.batch_shape:
+        raise ValueError(f"spectral_basis needs a single mesh, got batch shape {mesh.batch_shape}")
+    adj = adjacency_from_faces(np.asarray(mesh.faces), mesh.num_vertices)
+    return graph_basis(adj, r, kind, dense_max=dense_max, extend_clusters=extend_clusters)
