@@ -1,7 +1,7 @@
 """``jaxmesh compress`` and ``jaxmesh decompress`` (see :mod:`jaxmesh.cli`).
 
     jaxmesh compress IN OUT.jxm [--keep 0.1] [--bits 12] [--basis laplacian|umbrella]
-                     [--patch-size 1000] [--preserve-order] [--force] [--json]
+                     [--patch-size N] [--preserve-order] [--force] [--json]
     jaxmesh decompress IN.jxm OUT [--force]
     jaxmesh decompress --info IN.jxm [--json]
 
@@ -32,8 +32,8 @@ def _configure_compress(p: argparse.ArgumentParser) -> None:
                    help="quantization: step = largest bounding-box side / 2^bits (default 12)")
     p.add_argument("--basis", choices=("laplacian", "umbrella"), default="laplacian",
                    help="laplacian: Karni–Gotsman L = D - A (default); umbrella: the thesis's K = D^-1 A - I")
-    p.add_argument("--patch-size", type=int, default=1000,
-                   help="target vertices per METIS patch (default 1000)")
+    p.add_argument("--patch-size", type=int, default=None,
+                   help="target vertices per METIS patch (default: 100/keep, clipped to 1000..3000)")
     p.add_argument("--preserve-order", action="store_true",
                    help="also store the vertex order (costs about log2(V) bits per vertex)")
     p.add_argument("--force", action="store_true", help="replace OUT if it exists")

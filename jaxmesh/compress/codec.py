@@ -53,7 +53,8 @@ from . import connectivity as _conn
 from . import patches as _patches
 from .rangecoder import Model, RangeCoderError, RangeDecoder, RangeEncoder
 
-__all__ = ["MAGIC", "FORMAT_VERSION", "CodecError", "Compressed", "compress", "decompress", "inspect"]
+__all__ = ["MAGIC", "FORMAT_VERSION", "CodecError", "Compressed", "auto_patch_size", "compress", "decompress",
+           "inspect"]
 
 MAGIC = b"\x89JXM\r\n\x1a\n"
 FORMAT_VERSION = 1
@@ -187,14 +188,26 @@ def _reconstruct(bases, blocks, step: float, n: int) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------- public
+def auto_patch_size(keep: float) -> int:
+    """Default patch size: about 100 modes per patch, between 1 000 and 3 000 vertices.
+
+    Bigger patches compress better (fewer seams, fewer label bits: on the bunny at
+    keep = 0.02, 1.77 bits/vertex with 5 000-vertex patches against 2.02 with
+    1 000) but the eigensolve grows with patch size × modes; at ~100 modes a
+    patch costs ~0.1–0.3 s."""
+    return int(np.clip(round(100 / keep), 1000, 3000))
+
+
 def compress(mesh: Mesh, keep: float = 0.1, bits: int = 12, *, basis: str = "laplacian",
-             patch_size: int = 1000, preserve_order: bool = False, dense_max: int = 1200) -> Compressed:
+             patch_size: int | None = None, preserve_order: bool = False,
+             dense_max: int = 1200) -> Compressed:
     """Encode ``mesh`` to ``.jxm`` bytes (see the module doc for the format).
 
     ``keep`` ∈ (0, 1]: fraction of each patch's spectral coefficients kept;
     ``bits`` ∈ [1, 30]: quantization step = largest bounding-box side · 2^-bits;
     ``basis``: ``"laplacian"`` (Karni–Gotsman, default) or ``"umbrella"`` (the
-    thesis's K); ``patch_size``: target vertices per METIS patch;
+    thesis's K); ``patch_size``: target vertices per METIS patch (default
+    :func:`auto_patch_size`);
     ``preserve_order``: also store the vertex permutation (≈ log2 V bits per
     vertex) so that :func:`decompress` returns the original vertex order (the
     faces are the same oriented triangles, in the decoder's order).
@@ -208,6 +221,8 @@ def compress(mesh: Mesh, keep: float = 0.1, bits: int = 12, *, basis: str = "lap
         raise ValueError(f"bits must be an integer in [1, 30], got {bits!r}")
     if basis not in _basis.KINDS:
         raise ValueError(f"basis must be one of {_basis.KINDS}, got {basis!r}")
+    if patch_size is None:
+        patch_size = auto_patch_size(keep)
     if not (isinstance(patch_size, (int, np.integer)) and patch_size >= 16):
         raise ValueError(f"patch_size must be an integer >= 16, got {patch_size!r}")
     v = np.asarray(mesh.vertices, np.float64)
@@ -269,6 +284,7 @@ def compress(mesh: Mesh, keep: float = 0.1, bits: int = 12, *, basis: str = "lap
         "patches": len(ranks),
         "coefficients": int(sum(ranks)),
         "basis": basis,
+        "patch_size": int(patch_size),
         "step": step,
     }
     return Compressed(data=data, mesh=out_mesh, order=out_order, stats=stats)
