@@ -259,7 +259,7 @@ def write_table(results) -> None:
         lines.append(f"| {name} | " + " | ".join(f"{x:.3f}" for x in ratio_d)
                      + f" | {wins_d}/{len(rs)} | {wins_e}/{len(rs)} |")
     lines += ["", f"Umbrella better in D in **{tot[0]} of {tot[2]}** cases, in E in **{tot[1]} of {tot[2]}**.", "",
-              "## Inside the codec (METIS patches of ~1000 vertices, 16-bit quantization)", "",
+              "## Inside the codec (default METIS patches: 100/keep vertices, 1000–3000; 16-bit quantization)", "",
               "| mesh | keep | basis | D | E | vertex RMS | bits/vertex |", "|---|---|---|---|---|---|---|"]
     for r in results["codec"]:
         lines.append(f"| {r['mesh']} | {r['keep']} | {r['basis']} | {r['D']:.3e} | {r['E']:.3e} | "

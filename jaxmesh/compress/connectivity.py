@@ -663,7 +663,7 @@ def encode_connectivity(faces: np.ndarray, num_vertices: int, *, allow_fallback:
         order = order[keep]
     head = len(pairs).to_bytes(4, "little") + pairs.astype("<u4").tobytes()
     return ConnectivityCode(data=head + code.data, fallback=False, order=order, faces=faces_d,
-                            symbols=code.symbols, reason=f"{len(copy_of)} non-manifold vertex copies"
+                            symbols=code.symbols, reason=f"non-manifold vertices split into {len(copy_of)} extra copies"
                             if len(copy_of) else "")
 
 
