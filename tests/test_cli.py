@@ -162,9 +162,6 @@ def test_denoise_lam_auto_blind_and_supervised(capsys, tmp_path):
     assert main(["denoise", noisy, blind, "--lam", "auto"]) == 0
     text = capsys.readouterr().out
     assert "tuned lam (blind, noise sigma" in text and "estimated)" in text
-    assert main(["denoise", noisy, str(tmp_path / "t.ply"), "--method", "taubin", "--tune",
-                 "--reference", clean, "--json"]) == 0
-    assert json.loads(capsys.readouterr().out)["tuned"]["names"] == ["lam", "mu"]
     # refusals
     assert main(["denoise", noisy, str(tmp_path / "x.ply"), "--method", "bilateral", "--lam", "auto"]) == 1
     assert "has no parameter 'lam'" in capsys.readouterr().err
@@ -175,3 +172,14 @@ def test_denoise_lam_auto_blind_and_supervised(capsys, tmp_path):
     with pytest.raises(SystemExit) as e:
         main(["denoise", noisy, str(tmp_path / "x.ply"), "--lam", "often"])
     assert e.value.code == 2
+
+
+@pytest.mark.slow
+def test_denoise_tune_every_continuous_parameter(capsys, tmp_path):
+    noisy, clean = str(tmp_path / "noisy.ply"), str(tmp_path / "clean.ply")
+    assert main(["noise", "--sample", "spot", noisy, "--sigma", "0.1", "--seed", "2"]) == 0
+    assert main(["noise", "--sample", "spot", clean, "--sigma", "0"]) == 0
+    capsys.readouterr()
+    assert main(["denoise", noisy, str(tmp_path / "t.ply"), "--method", "taubin", "--tune",
+                 "--reference", clean, "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["tuned"]["names"] == ["lam", "mu"]

@@ -78,7 +78,7 @@ def test_random_walk_denoises(noisy_spot):
     assert float(e1) < 0.8 * float(e0)
 
 
-@pytest.mark.parametrize("variant", ["paper", "random_walk"])
+@pytest.mark.parametrize("variant", [pytest.param("paper", marks=pytest.mark.slow), "random_walk"])
 def test_gradients_with_respect_to_lambda_and_positions(bumpy_grid, variant):
     x = bumpy_grid.vertices
     loss_lam = lambda lam: jnp.sum(kernel_diffusion(bumpy_grid, lam, 3, variant).vertices ** 2)  # noqa: E731
