@@ -23,10 +23,12 @@ def view_rotation(elev: float, azim: float) -> np.ndarray:
 
 
 def render(mesh, ax=None, elev: float = 15.0, azim: float = 20.0, color=(0.75, 0.8, 0.9),
-           title: str | None = None, up: str = "y"):
+           title: str | None = None, up: str = "y", center=None):
     """Draw ``mesh`` (a :class:`~jaxmesh.Mesh` or (vertices, faces)) into ``ax``
     (a new figure's axes if None) and return the axes.  ``up`` names the
-    model's up axis ("y" or "z")."""
+    model's up axis ("y" or "z"); ``center`` (3,) is the model point put at the
+    middle of the view (default: the bounding-box centre), so that several
+    meshes can share one frame."""
     import matplotlib.pyplot as plt
     from matplotlib.collections import PolyCollection
 
@@ -40,7 +42,8 @@ def render(mesh, ax=None, elev: float = 15.0, azim: float = 20.0, color=(0.75, 0
         v = v[:, [0, 2, 1]] * np.array([1, 1, -1])
     elif up != "y":
         raise ValueError(f"up must be 'y' or 'z', got {up!r}")
-    v = (v - 0.5 * (v.min(0) + v.max(0))) @ view_rotation(elev, azim).T
+    mid = 0.5 * (v.min(0) + v.max(0)) if center is None else np.asarray(center, np.float64)
+    v = (v - mid) @ view_rotation(elev, azim).T
     tri = v[f]
     n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     norm = np.linalg.norm(n, axis=1)

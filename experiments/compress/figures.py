@@ -112,13 +112,18 @@ def fig_renders(plt, name: str, mesh, vecs: dict, rs, fig_id: str, up: str = "y"
 
 def fig_closeup(plt, mesh, vecs: dict, r: int = 125) -> None:
     fig, axes = plt.subplots(1, 3, figsize=(12, 4.5))
+    v = np.asarray(mesh.vertices)
+    mid = 0.5 * (v.min(0) + v.max(0))  # one frame for all three panels
+    window = None
     for ax, (title, m) in zip(axes, [("original", mesh)] + [
             (f"{LABEL[k]}, r = {r}", reconstruct(mesh, vecs[k][:, :r], k)) for k in KINDS]):
-        render(m, ax=ax, title=title)
-        x0, x1 = ax.get_xlim()
-        y0, y1 = ax.get_ylim()
-        ax.set_xlim(x0, x0 + 0.45 * (x1 - x0))  # the head: upper left in this view
-        ax.set_ylim(y0 + 0.5 * (y1 - y0), y1)
+        render(m, ax=ax, title=title, center=mid)
+        if window is None:
+            x0, x1 = ax.get_xlim()
+            y0, y1 = ax.get_ylim()
+            window = ((x0, x0 + 0.45 * (x1 - x0)), (y0 + 0.5 * (y1 - y0), y1))  # the head, upper left
+        ax.set_xlim(*window[0])
+        ax.set_ylim(*window[1])
     fig.tight_layout()
     fig.savefig(OUT / "fig3_5_bunny_head_r125.png", dpi=100)
     plt.close(fig)

@@ -323,7 +323,7 @@ def _parse(data: bytes):
     for ln in lengths:
         sections.append(data[pos:pos + ln])
         pos += ln
-    return dict(flags=flags, n=n, nf=nf, parts=parts, bits=bits, keep=keep, step=step,
+    return dict(version=version, flags=flags, n=n, nf=nf, parts=parts, bits=bits, keep=keep, step=step,
                 check=np.asarray(fields[9:12]), sections=sections, size=len(data))
 
 
@@ -332,7 +332,7 @@ def inspect(data: bytes) -> dict:
     h = _parse(data)
     names = ("connectivity", "labels", "ranks", "coefficients", "order")
     return {
-        "format_version": FORMAT_VERSION,
+        "format_version": h["version"],
         "vertices": h["n"], "faces": h["nf"], "patches": h["parts"], "bits": h["bits"],
         "keep": h["keep"], "step": h["step"],
         "basis": "umbrella" if h["flags"] & _UMBRELLA else "laplacian",
