@@ -102,6 +102,13 @@ class _Models:
         self.offsets = Model(3 * 34)
 
 
+def _link(nxt: list, prv: list, *nodes: int) -> None:
+    """Chain border nodes: nodes[0] → nodes[1] → … (next and prev pointers)."""
+    for x, y in zip(nodes, nodes[1:]):
+        nxt[x] = y
+        prv[y] = x
+
+
 def _ctx_new(fa: int, fb: int, prev_new: int) -> int:
     return ((min(fa, _CAP) * (_CAP + 1)) + min(fb, _CAP)) * 2 + prev_new
 
@@ -245,8 +252,7 @@ def traversal_code(faces: np.ndarray, num_vertices: int) -> ConnectivityCode:
         k0 = add_node(v0, 3 * s, loop)
         k1 = add_node(v1, 3 * s + 1, loop)
         k2 = add_node(v2, 3 * s + 2, loop)
-        node_next[k0], node_next[k1], node_next[k2] = k1, k2, k0
-        node_prev[k0], node_prev[k1], node_prev[k2] = k2, k0, k1
+        _link(node_next, node_prev, k0, k1, k2, k0)
         loop_gate.append(k0)
         loop_len = {loop: 3}
         stack = [loop]
@@ -274,10 +280,7 @@ def traversal_code(faces: np.ndarray, num_vertices: int) -> ConnectivityCode:
                 emit(b, a, c)
                 k = add_node(c, h_cb, lp)
                 set_he(g, h_ac)
-                node_next[g] = k
-                node_prev[k] = g
-                node_next[k] = m
-                node_prev[m] = k
+                _link(node_next, node_prev, g, k, m)
                 loop_len[lp] += 1
                 continue
             enc.bit(mdl.is_new, _ctx_new(fa, fb, prev_new), 0)
@@ -314,8 +317,7 @@ def traversal_code(faces: np.ndarray, num_vertices: int) -> ConnectivityCode:
                 counts[_L] += 1
                 node_of_he[node_he[g]] = -1
                 set_he(k, h_cb)
-                node_next[k] = m
-                node_prev[m] = k
+                _link(node_next, node_prev, k, m)
                 loop_gate[lp] = k
                 loop_len[lp] -= 1
                 continue
@@ -326,8 +328,7 @@ def traversal_code(faces: np.ndarray, num_vertices: int) -> ConnectivityCode:
                     counts[_R] += 1
                     node_of_he[node_he[m]] = -1
                     set_he(g, h_ac)
-                    node_next[g] = k
-                    node_prev[k] = g
+                    _link(node_next, node_prev, g, k)
                     loop_len[lp] -= 1
                     continue
                 enc.bit(mdl.is_right, min(fb, _CAP), 0)
@@ -343,12 +344,8 @@ def traversal_code(faces: np.ndarray, num_vertices: int) -> ConnectivityCode:
                 enc.uint(mdl.offsets, 0, e - 2)
                 k2 = add_node(c, h_cb, lp)
                 set_he(g, h_ac)
-                node_next[j] = k2
-                node_prev[k2] = j
-                node_next[k2] = m
-                node_prev[m] = k2
-                node_next[g] = k
-                node_prev[k] = g
+                _link(node_next, node_prev, j, k2, m)
+                _link(node_next, node_prev, g, k)
                 new_loop = len(loop_gate)
                 size_a, size_b = e + 1, length - e
                 # relabel the smaller part (the decoder needs no labels)
@@ -389,12 +386,8 @@ def traversal_code(faces: np.ndarray, num_vertices: int) -> ConnectivityCode:
                     break
             k2 = add_node(c, h_cb, lp)
             set_he(g, h_ac)
-            node_next[j] = k2
-            node_prev[k2] = j
-            node_next[k2] = m
-            node_prev[m] = k2
-            node_next[g] = k
-            node_prev[k] = g
+            _link(node_next, node_prev, j, k2, m)
+            _link(node_next, node_prev, g, k)
             loop_len[lp] = length + loop_len.pop(other) + 1
             stack.remove(other)
     head = components.to_bytes(4, "little") + total.to_bytes(4, "little") + nf.to_bytes(4, "little")
@@ -465,8 +458,7 @@ def traversal_decode(data: bytes) -> np.ndarray:
         emit(v0, v1, v2)
         loop = len(loop_gate)
         k0, k1, k2 = add_node(v0), add_node(v1), add_node(v2)
-        node_next[k0], node_next[k1], node_next[k2] = k1, k2, k0
-        node_prev[k0], node_prev[k1], node_prev[k2] = k2, k0, k1
+        _link(node_next, node_prev, k0, k1, k2, k0)
         loop_gate.append(k0)
         loop_len = {loop: 3}
         stack = [loop]
@@ -482,10 +474,7 @@ def traversal_decode(data: bytes) -> np.ndarray:
                 c = new_vertex()
                 emit(b, a, c)
                 k = add_node(c)
-                node_next[g] = k
-                node_prev[k] = g
-                node_next[k] = m
-                node_prev[m] = k
+                _link(node_next, node_prev, g, k, m)
                 loop_len[lp] += 1
                 continue
             prev_new = 0
@@ -500,16 +489,14 @@ def traversal_decode(data: bytes) -> np.ndarray:
             elif dec.bit(mdl.is_left, min(fa, _CAP)):
                 k = node_prev[g]
                 emit(b, a, node_v[k])
-                node_next[k] = m
-                node_prev[m] = k
+                _link(node_next, node_prev, k, m)
                 loop_gate[lp] = k
                 loop_len[lp] -= 1
                 continue
             elif dec.bit(mdl.is_right, min(fb, _CAP)):
                 k = node_next[m]
                 emit(b, a, node_v[k])
-                node_next[g] = k
-                node_prev[k] = g
+                _link(node_next, node_prev, g, k)
                 loop_len[lp] -= 1
                 continue
             else:
@@ -525,12 +512,8 @@ def traversal_decode(data: bytes) -> np.ndarray:
                 emit(b, a, c)
                 j = node_prev[k]
                 k2 = add_node(c)
-                node_next[j] = k2
-                node_prev[k2] = j
-                node_next[k2] = m
-                node_prev[m] = k2
-                node_next[g] = k
-                node_prev[k] = g
+                _link(node_next, node_prev, j, k2, m)
+                _link(node_next, node_prev, g, k)
                 loop_b = len(loop_gate)
                 loop_gate.append(k2)
                 loop_len[loop_b] = length - e
@@ -548,12 +531,8 @@ def traversal_decode(data: bytes) -> np.ndarray:
             emit(b, a, c)
             j = node_prev[k]
             k2 = add_node(c)
-            node_next[j] = k2
-            node_prev[k2] = j
-            node_next[k2] = m
-            node_prev[m] = k2
-            node_next[g] = k
-            node_prev[k] = g
+            _link(node_next, node_prev, j, k2, m)
+            _link(node_next, node_prev, g, k)
             loop_len[lp] = length + loop_len.pop(other) + 1
             stack.remove(other)
     if nv != total or len(out) != 3 * nf:
