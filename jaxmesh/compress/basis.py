@@ -181,5 +181,6 @@ def spectral_basis(mesh, r: int, kind: str = "umbrella", *, dense_max: int = 120
     """:func:`graph_basis` of a :class:`~jaxmesh.Mesh`'s vertex graph (r ≥ 1 columns)."""
     if mesh.batch_shape:
         raise ValueError(f"spectral_basis needs a single mesh, got batch shape {mesh.batch_shape}")
-    adj = adjacency_from_faces(np.asarray(mesh.faces), mesh.num_vertices)
-    return graph_basis(adj, r, kind, dense_max=dense_max, extend_clusters=extend_clusters)
+    from ..sparse import adjacency_matrix
+
+    return graph_basis(adjacency_matrix(mesh), r, kind, dense_max=dense_max, extend_clusters=extend_clusters)

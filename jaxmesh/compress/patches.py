@@ -28,18 +28,14 @@ __all__ = ["partition", "encode_labels", "decode_labels", "patch_adjacency"]
 
 def partition(adjacency: sp.csr_matrix, patch_size: int) -> np.ndarray:
     """Labels (V,) of ~V / patch_size METIS parts, renumbered by first appearance."""
-    import pymetis
+    from ..hash.partition import metis_labels
 
     n = adjacency.shape[0]
     parts = max(1, int(round(n / max(int(patch_size), 1))))
     if parts == 1:
         return np.zeros(n, np.int64)
     adj = adjacency.tocsr()
-    xadj = adj.indptr.astype(np.int32)
-    adjncy = adj.indices.astype(np.int32)
-    _, labels = pymetis.part_graph(parts, adjacency=pymetis.CSRAdjacency(xadj, adjncy),
-                                   options=pymetis.Options(seed=0))
-    labels = np.asarray(labels, np.int64)
+    labels = metis_labels(adj.indptr, adj.indices, parts, seed=0)
     _, first = np.unique(labels, return_index=True)
     rank = np.empty(labels.max() + 1, np.int64)
     used = labels[np.sort(first)]
@@ -52,16 +48,11 @@ def patch_adjacency(adjacency: sp.csr_matrix, index: np.ndarray) -> sp.csr_matri
     return adjacency[index][:, index].tocsr()
 
 
-def _earlier_neighbours(adjacency: sp.csr_matrix):
-    indptr, indices = adjacency.indptr.tolist(), adjacency.indices.tolist()
-    return indptr, indices
-
-
 def encode_labels(labels: np.ndarray, adjacency: sp.csr_matrix) -> bytes:
     """Range-coded labels; the context is what the decoder already knows."""
     enc = RangeEncoder()
     hit, new, alt = Model(4), Model(2), Model(40)
-    indptr, indices = _earlier_neighbours(adjacency)
+    indptr, indices = adjacency.indptr.tolist(), adjacency.indices.tolist()
     lab = labels.tolist()
     top = -1
     for i, li in enumerate(lab):
@@ -85,7 +76,7 @@ def encode_labels(labels: np.ndarray, adjacency: sp.csr_matrix) -> bytes:
 def decode_labels(data: bytes, adjacency: sp.csr_matrix, parts: int) -> np.ndarray:
     dec = RangeDecoder(data)
     hit, new, alt = Model(4), Model(2), Model(40)
-    indptr, indices = _earlier_neighbours(adjacency)
+    indptr, indices = adjacency.indptr.tolist(), adjacency.indices.tolist()
     n = adjacency.shape[0]
     lab = [0] * n
     top = -1

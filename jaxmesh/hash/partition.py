@@ -12,7 +12,16 @@ import numpy as np
 
 from ..mesh import Mesh
 
-__all__ = ["metis_partition", "submesh"]
+__all__ = ["metis_labels", "metis_partition", "submesh"]
+
+
+def metis_labels(xadj: np.ndarray, adjncy: np.ndarray, parts: int, seed: int = 0) -> np.ndarray:
+    """METIS's k-way labels (V,) for a graph in CSR form (``xadj``, ``adjncy``), fixed seed."""
+    import pymetis
+
+    adjacency = pymetis.CSRAdjacency(np.asarray(xadj, np.int32), np.asarray(adjncy, np.int32))
+    _, labels = pymetis.part_graph(int(parts), adjacency=adjacency, options=pymetis.Options(seed=int(seed)))
+    return np.asarray(labels, np.int64)
 
 
 def metis_partition(mesh: Mesh, parts: int, seed: int = 0) -> np.ndarray:
@@ -22,8 +31,6 @@ def metis_partition(mesh: Mesh, parts: int, seed: int = 0) -> np.ndarray:
     (METIS's default 3% imbalance).  Raises ``ValueError`` when the mesh has
     fewer than ``parts`` vertices.  Every label is used (checked).
     """
-    import pymetis
-
     if mesh.batch_shape:
         raise ValueError(f"metis_partition needs a single mesh, got batch shape {mesh.batch_shape}")
     m = mesh.num_vertices
@@ -34,11 +41,8 @@ def metis_partition(mesh: Mesh, parts: int, seed: int = 0) -> np.ndarray:
     if parts == 1:
         return np.zeros(m, np.int64)
     degree = np.asarray(mesh.degree, np.int64)
-    xadj = np.concatenate([[0], np.cumsum(degree)]).astype(np.int32)
-    adjncy = np.asarray(mesh.dst, np.int32)  # directed edges are sorted by source
-    opts = pymetis.Options(seed=int(seed))
-    _, labels = pymetis.part_graph(int(parts), adjacency=pymetis.CSRAdjacency(xadj, adjncy), options=opts)
-    labels = np.asarray(labels, np.int64)
+    xadj = np.concatenate([[0], np.cumsum(degree)])
+    labels = metis_labels(xadj, np.asarray(mesh.dst), parts, seed)  # directed edges are sorted by source
     missing = np.setdiff1d(np.arange(parts), labels)
     if missing.size:
         raise ValueError(f"METIS left {missing.size} of {parts} parts empty "
