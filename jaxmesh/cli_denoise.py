@@ -127,7 +127,9 @@ def _parameter_flags() -> dict[str, tuple[str, object]]:
 
 def _configure_denoise(p: argparse.ArgumentParser) -> None:
     _io_arguments(p)
-    p.add_argument("--method", default="kernel", help="denoising method (default kernel; see --list-methods)")
+    p.add_argument("--method", default="auto",
+                   help="denoising method, or 'auto' (default): choose the method and its parameters "
+                        "blind, by a recorrupted estimate of the normal error (see --list-methods)")
     p.add_argument("--list-methods", action="store_true", help="list methods and their parameters, then exit")
     for name, kind in _parameter_flags().items():
         p.add_argument("--" + name.replace("_", "-"), dest="p_" + name, type=kind, default=None,
@@ -151,6 +153,7 @@ def _configure_denoise(p: argparse.ArgumentParser) -> None:
 def _list_methods() -> int:
     from .denoise import METHODS
 
+    print("auto: choose the method and its parameters blind (default) [jaxmesh.tune.choose_denoiser]")
     for name, m in METHODS.items():
         print(f"{name}: {m.summary} [{m.reference}]")
         for pname, p in m.params.items():
@@ -167,9 +170,69 @@ def _errors(reference, mesh) -> dict[str, float]:
             "normal_angle_deg": float(mean_normal_angle_error(reference, mesh))}
 
 
+def _load_pair(args):
+    """(label, mesh, reference or None, output path), refusing a reference of another connectivity."""
+    import jax.numpy as jnp
+
+    from .io import load
+
+    out = _positional_output(args)
+    label, mesh = _load_input(args)
+    _check_output(out, args.force)
+    reference = load(args.reference) if args.reference else None
+    if reference is not None and (reference.num_vertices != mesh.num_vertices
+                                  or not bool(jnp.all(reference.faces == mesh.faces))):
+        raise CLIError(f"--reference {args.reference} does not have the connectivity of {label}")
+    return label, mesh, reference, out
+
+
+def _run_auto(args) -> int:
+    """--method auto: jaxmesh.tune.choose_denoiser, then the same report as a named method."""
+    from .io import save
+    from .tune import choose_denoiser
+
+    given = sorted(k[2:] for k, v in vars(args).items() if k.startswith("p_") and v is not None)
+    if given or args.tune:
+        flags = ", ".join("--" + k.replace("_", "-") for k in given) or "--tune"
+        raise CLIError(f"{flags} needs a named method (--method NAME); --method auto chooses its own parameters")
+    if args.noise_sigma is not None and not (args.noise_sigma > 0):
+        raise CLIError(f"--noise-sigma must be > 0, got {args.noise_sigma}")
+    label, mesh, reference, out = _load_pair(args)
+    start = time.perf_counter()
+    choice = choose_denoiser(mesh, sigma=args.noise_sigma)
+    seconds = time.perf_counter() - start
+    save(choice.mesh, out, overwrite=args.force)
+    summary = {"input": label, "output": out, "method": choice.method, "params": choice.params,
+               "seconds": round(seconds, 3), "auto": choice.summary()}
+    if reference is not None:
+        summary["before"] = _errors(reference, mesh)
+        summary["after"] = _errors(reference, choice.mesh)
+    if not choice.improved:
+        print("jaxmesh: warning: no candidate is estimated to improve on the input (the noise may be "
+              "overestimated, or the mesh already clean); wrote the least bad one", file=sys.stderr)
+    if args.json:
+        print(json.dumps(summary))
+        return 0
+    ps = " ".join(f"{k}={v:g}" for k, v in choice.params.items())
+    print(f"{label} -> {out}: auto chose {choice.method} {ps} ({seconds:.2f} s)")
+    print(f"  noise sigma {choice.sigma:.4g} ({'estimated' if choice.estimated else 'given'}); estimated RMS "
+          f"normal error {choice.rms_tilt_degrees:.2f}° vs {summary['auto']['noisy_rms_normal_error_deg']:.2f}° "
+          "for the input (recorrupted estimate, both at 1.12x the noise)")
+    runner = next((r for r in choice.table if r[0] != choice.method), None)
+    if runner is not None:
+        print(f"  best other method: {runner[0]} {runner[1]} (estimate {runner[2]:.3g} vs {choice.risk:.3g})")
+    if reference is not None:
+        for key in ("visual_error", "normal_angle_deg"):
+            b, a = summary["before"][key], summary["after"][key]
+            print(f"  {key:<17} before {b:.6g}  after {a:.6g}" + (f"  ({a / b:.3f}x)" if b else ""))
+    return 0
+
+
 def _run_denoise(args) -> int:
     if args.list_methods:
         return _list_methods()
+    if args.method == "auto":
+        return _run_auto(args)
     import jax.numpy as jnp
 
     from .denoise import METHODS, diverged
@@ -177,7 +240,7 @@ def _run_denoise(args) -> int:
     from .transforms import normalize
 
     if args.method not in METHODS:
-        raise CLIError(f"unknown method {args.method!r}; choose one of {', '.join(sorted(METHODS))}")
+        raise CLIError(f"unknown method {args.method!r}; choose auto or one of {', '.join(sorted(METHODS))}")
     method = METHODS[args.method]
     given = {k[2:]: v for k, v in vars(args).items() if k.startswith("p_") and v is not None}
     auto = [k for k, v in given.items() if v == "auto"]

@@ -90,8 +90,8 @@ def test_noise_then_denoise_with_reference(capsys, tmp_path):
     np.testing.assert_array_equal(jaxmesh.load(clean).vertices,
                                   jaxmesh.data.load_sample("spot", dtype=np.float64).vertices)
     capsys.readouterr()
-    assert main(["denoise", noisy, out, "--lam", "0.5", "--iterations", "4", "--reference", clean,
-                 "--json"]) == 0
+    assert main(["denoise", noisy, out, "--method", "kernel", "--lam", "0.5", "--iterations", "4",
+                 "--reference", clean, "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["params"] == {"lam": 0.5, "iterations": 4, "variant": "random_walk", "safeguard": True}
     assert summary["after"]["visual_error"] < 0.3 * summary["before"]["visual_error"]
@@ -112,7 +112,8 @@ def test_denoise_errors(capsys, tmp_path):
     assert "has no parameter(s) ['sigma_c']" in capsys.readouterr().err
     assert main(["denoise", noisy, out, "--method", "magic"]) == 1
     assert "unknown method 'magic'" in capsys.readouterr().err
-    assert main(["denoise", noisy, out, "--lam", "1e-4", "--iterations", "10", "--safeguard", "no"]) == 1
+    assert main(["denoise", noisy, out, "--method", "kernel", "--lam", "1e-4", "--iterations", "10",
+                 "--safeguard", "no"]) == 1
     assert "diverged" in capsys.readouterr().err
     assert not (tmp_path / "o.ply").exists()
     assert main(["denoise", noisy, out]) == 0
@@ -121,7 +122,7 @@ def test_denoise_errors(capsys, tmp_path):
     assert main(["denoise", noisy, out, "--force", "--reference", str(shared_mesh_path("eight.ply"))]) == 1
     assert "does not have the connectivity" in capsys.readouterr().err
     with pytest.raises(SystemExit) as e:
-        main(["denoise", noisy, out, "--iterations", "2.5"])
+        main(["denoise", noisy, out, "--method", "kernel", "--iterations", "2.5"])
     assert e.value.code == 2
 
 
@@ -151,7 +152,7 @@ def test_denoise_lam_auto_blind_and_supervised(capsys, tmp_path):
     assert main(["noise", "--sample", "spot", clean, "--sigma", "0"]) == 0
     capsys.readouterr()
     out = str(tmp_path / "sup.ply")
-    assert main(["denoise", noisy, out, "--lam", "auto", "--reference", clean, "--json"]) == 0
+    assert main(["denoise", noisy, out, "--method", "kernel", "--lam", "auto", "--reference", clean, "--json"]) == 0
     s = json.loads(capsys.readouterr().out)
     assert s["tuned"]["mode"] == "supervised" and s["tuned"]["names"] == ["lam"]
     want = tune(jaxmesh.load(noisy), jaxmesh.load(clean))
@@ -159,18 +160,19 @@ def test_denoise_lam_auto_blind_and_supervised(capsys, tmp_path):
     assert s["after"]["visual_error"] == pytest.approx(float(want.error), rel=1e-9)
     np.testing.assert_allclose(jaxmesh.load(out).vertices, want.mesh.vertices, atol=1e-12)
     blind = str(tmp_path / "blind.ply")
-    assert main(["denoise", noisy, blind, "--lam", "auto"]) == 0
+    assert main(["denoise", noisy, blind, "--method", "kernel", "--lam", "auto"]) == 0
     text = capsys.readouterr().out
     assert "tuned lam (blind, noise sigma" in text and "estimated)" in text
     # refusals
     assert main(["denoise", noisy, str(tmp_path / "x.ply"), "--method", "bilateral", "--lam", "auto"]) == 1
     assert "has no parameter 'lam'" in capsys.readouterr().err
-    assert main(["denoise", noisy, str(tmp_path / "x.ply"), "--lam", "auto", "--raw-units"]) == 1
+    assert main(["denoise", noisy, str(tmp_path / "x.ply"), "--method", "kernel", "--lam", "auto", "--raw-units"]) == 1
     assert "drop --raw-units" in capsys.readouterr().err
-    assert main(["denoise", noisy, str(tmp_path / "x.ply"), "--lam", "auto", "--noise-sigma", "-1"]) == 1
+    assert main(["denoise", noisy, str(tmp_path / "x.ply"), "--method", "kernel", "--lam", "auto",
+                 "--noise-sigma", "-1"]) == 1
     assert "--noise-sigma must be > 0" in capsys.readouterr().err
     with pytest.raises(SystemExit) as e:
-        main(["denoise", noisy, str(tmp_path / "x.ply"), "--lam", "often"])
+        main(["denoise", noisy, str(tmp_path / "x.ply"), "--method", "kernel", "--lam", "often"])
     assert e.value.code == 2
 
 
@@ -183,3 +185,22 @@ def test_denoise_tune_every_continuous_parameter(capsys, tmp_path):
     assert main(["denoise", noisy, str(tmp_path / "t.ply"), "--method", "taubin", "--tune",
                  "--reference", clean, "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["tuned"]["names"] == ["lam", "mu"]
+
+
+def test_denoise_auto_is_the_default_and_says_what_it_chose(capsys, tmp_path):
+    import jaxmesh
+    from jaxmesh.tune import choose_denoiser
+
+    noisy, clean, out = (str(tmp_path / n) for n in ("noisy.ply", "clean.ply", "out.ply"))
+    assert main(["noise", "--sample", "spot", noisy, "--sigma", "0.3", "--along-normals"]) == 0
+    assert main(["noise", "--sample", "spot", clean, "--sigma", "0"]) == 0
+    capsys.readouterr()
+    assert main(["denoise", noisy, out, "--reference", clean, "--json"]) == 0
+    s = json.loads(capsys.readouterr().out)
+    want = choose_denoiser(jaxmesh.load(noisy))
+    assert s["method"] == want.method and s["params"] == want.params
+    assert s["auto"]["improved"] and len(s["auto"]["candidates"]) == 18
+    assert s["after"]["normal_angle_deg"] < 0.5 * s["before"]["normal_angle_deg"]
+    np.testing.assert_allclose(jaxmesh.load(out).vertices, want.mesh.vertices, atol=1e-12)
+    assert main(["denoise", noisy, str(tmp_path / "x.ply"), "--lam", "0.3"]) == 1
+    assert "--lam needs a named method" in capsys.readouterr().err

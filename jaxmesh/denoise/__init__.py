@@ -9,6 +9,11 @@ differentiable with respect to its continuous parameters and the positions.
 
 from ._loop import progress
 from .anisotropic import anisotropic_diffusion
+from .bilateral_normal import bilateral_normal_filtering, joint_bilateral_normals, spatial_weights
+from .face_graph import FaceGraph, centroid_spacing, face_centroids, face_graph
+from .guided import guidance_normals, guided_normal_filtering, patch_inconsistency
+from .l0 import edge_operator, l0_denoising, mean_dihedral_angle
+from .vertex_update import vertex_update
 from .bilateral import bilateral_denoising
 from .curvature import cotangent_flow, implicit_diffusion_step
 from .geometric_diffusion import anisotropic_stiffness, face_curvatures, geometric_diffusion
@@ -32,4 +37,8 @@ __all__ = [
     "implicit_diffusion_step", "normal_filtering", "filter_normals", "face_rings", "FaceRings",
     "ring_sum", "bilateral_denoising", "geometric_diffusion", "anisotropic_stiffness",
     "face_curvatures",
+    "FaceGraph", "face_graph", "face_centroids", "centroid_spacing", "vertex_update",
+    "bilateral_normal_filtering", "joint_bilateral_normals", "spatial_weights",
+    "guided_normal_filtering", "guidance_normals", "patch_inconsistency",
+    "l0_denoising", "edge_operator", "mean_dihedral_angle",
 ]

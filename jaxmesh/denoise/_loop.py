@@ -34,17 +34,19 @@ def progress(callback: Callable[[int], None]) -> Iterator[None]:
         _PROGRESS.reset(token)
 
 
-def iterate(step: Callable[[Float[Array, "*batch V 3"]], Float[Array, "*batch V 3"]],
-            x0: Float[Array, "*batch V 3"], iterations: int) -> Float[Array, "*batch V 3"]:
-    """x_{k+1} = step(x_k), ``iterations`` times, as a ``lax.fori_loop`` (compile
-    time independent of the count; reverse-mode differentiable)."""
+def iterate(step: Callable[..., Float[Array, "*batch V 3"]],
+            x0: Float[Array, "*batch V 3"], iterations: int, *, indexed: bool = False
+            ) -> Float[Array, "*batch V 3"]:
+    """x_{k+1} = step(x_k) (or step(k, x_k) when ``indexed``), ``iterations``
+    times, as a ``lax.fori_loop`` (compile time independent of the count;
+    reverse-mode differentiable)."""
     check_iterations(iterations)
     report = _PROGRESS.get() if _DEPTH.get() == 0 else None
 
     def body(i, x):
         token = _DEPTH.set(_DEPTH.get() + 1)
         try:
-            y = step(x)
+            y = step(i, x) if indexed else step(x)
         finally:
             _DEPTH.reset(token)
         if report is not None:

@@ -9,16 +9,19 @@ One outer iteration:
    * mean:   n_f <- normalize( sum_{g∈N(f)} A_g n_g );
    * median: n_f <- the n_g, g ∈ N(f), minimising sum_{h∈N(f)} ∠(n_g, n_h)
      (Yagou's angle median: the ring normal closest to all others);
-3. ``vertex_iterations`` times, every vertex moved towards the planes of its
-   faces:  x_i <- x_i + (1 / sum_{f∋i} A_f) sum_{f∋i} A_f n_f (n_f · (c_f - x_i)),
-   c_f the centroid of f (Yagou/Taubin vertex updating; the face normals stay fixed).
+3. ``vertex_iterations`` steps of the vertex update shared by every two-step
+   method (:mod:`.vertex_update`, Sun et al. 2007):
+   x_i <- x_i + (1/|F_i|) sum_{f∋i} n_f (n_f · (c_f - x_i)), c_f the centroid of f
+   at the current positions (the filtered normals stay fixed).  Until 2026-11 this
+   module used Yagou's area-weighted form with the areas frozen at the start of
+   the round; the uniform, shared update is what the two-step literature uses.
 
 The mean over N(f) is assembled from per-vertex and per-edge segment sums
 (T_f = sum_{v∈f} S_v counts edge neighbours twice and f three times, so
 sum_{g∈N(f)} = T_f - sum_{e∈f} U_e + A_f n_f), fully inside jit.  The median
-needs the explicit ring: :func:`face_rings` builds it on the host as a padded
-(F, K) index array, once per connectivity; pass it as ``rings=`` to call the
-median filter under ``jit``.
+needs the explicit ring: :func:`~jaxmesh.denoise.face_graph` builds it on the
+host as a padded (F, K) index array, once per connectivity; pass it as
+``graph=`` to call the median filter under ``jit``.
 """
 
 from __future__ import annotations
@@ -31,12 +34,14 @@ import numpy as np
 import scipy.sparse as sp
 from jaxtyping import Array, Bool, Float, Int
 
-from .._private import safe_divide, safe_normalize, segment_sum_rows, segment_sum_scalars
-from ..geometry import face_areas, face_corners, face_normals
+from .._private import safe_normalize, segment_sum_rows
+from ..geometry import face_areas, face_normals
 from ..mesh import Mesh
 from ._loop import check_iterations, iterate
+from .face_graph import FaceGraph, face_graph
+from .vertex_update import vertex_update
 
-__all__ = ["FaceRings", "face_rings", "ring_sum", "filter_normals", "update_vertices", "normal_filtering"]
+__all__ = ["FaceRings", "face_rings", "ring_sum", "filter_normals", "normal_filtering"]
 
 
 class FaceRings(NamedTuple):
@@ -103,41 +108,24 @@ def filter_normals(
     raise ValueError(f"kind must be 'mean' or 'median', got {kind!r}")
 
 
-def update_vertices(
-    mesh: Mesh, x: Float[Array, "*batch V 3"], normals: Float[Array, "*batch F 3"],
-    areas: Float[Array, "*batch F"], iterations: int,
-) -> Float[Array, "*batch V 3"]:
-    """x_i <- x_i + (1/sum_f A_f) sum_{f∋i} A_f n_f (n_f · (c_f - x_i)), ``iterations`` times."""
-    corners = mesh.faces.reshape(-1)
-    total = segment_sum_scalars(jnp.repeat(areas, 3, axis=-1), corners, mesh.num_vertices)
-
-    def step(x):
-        c = jnp.mean(face_corners(mesh.with_vertices(x)), axis=-2)            # (*b, F, 3)
-        offset = c[..., :, None, :] - x[..., mesh.faces, :]                    # (*b, F, 3, 3)
-        proj = jnp.sum(offset * normals[..., :, None, :], axis=-1)             # (*b, F, 3)
-        move = (areas[..., :, None] * proj)[..., None] * normals[..., :, None, :]
-        flat = move.reshape(*move.shape[:-3], -1, 3)
-        return x + safe_divide(segment_sum_rows(flat, corners, mesh.num_vertices), total[..., None])
-
-    return iterate(step, x, iterations)
-
-
 def normal_filtering(
     mesh: Mesh, iterations: int = 1, normal_iterations: int = 5, vertex_iterations: int = 10,
-    kind: Literal["mean", "median"] = "mean", rings: FaceRings | None = None,
+    kind: Literal["mean", "median"] = "mean", graph: FaceGraph | None = None,
 ) -> Mesh:
     """Yagou et al. 2002 (module docstring): ``iterations`` rounds of
     (filter the face normals ``normal_iterations`` times, then
-    ``vertex_iterations`` vertex updates)."""
+    ``vertex_iterations`` steps of the shared vertex update)."""
     check_iterations(normal_iterations, "normal_iterations")
     check_iterations(vertex_iterations, "vertex_iterations")
-    if kind == "median" and rings is None:
-        rings = face_rings(mesh)
+    rings = None
+    if kind == "median":
+        graph = face_graph(mesh) if graph is None else graph
+        rings = FaceRings(graph.ring, graph.ring_mask)
 
     def step(x):
         geo = mesh.with_vertices(x)
         n, a = face_normals(geo), face_areas(geo)
         n = iterate(lambda n: filter_normals(mesh, n, a, kind, rings), n, normal_iterations)
-        return update_vertices(mesh, x, n, a, vertex_iterations)
+        return vertex_update(mesh, x, n, vertex_iterations)
 
     return mesh.with_vertices(iterate(step, mesh.vertices, iterations))

@@ -23,6 +23,10 @@ from .curvature import cotangent_flow
 from .geometric_diffusion import geometric_diffusion
 from .kernel_flow import kernel_diffusion
 from .laplacian import BOUNDARY_MODES, hc_smoothing, laplacian_smoothing, taubin_smoothing
+from .bilateral_normal import bilateral_normal_filtering
+from .face_graph import face_graph
+from .guided import guided_normal_filtering
+from .l0 import l0_denoising
 from .normal_filtering import normal_filtering
 
 __all__ = ["Param", "Method", "METHODS", "denoise", "diverged"]
@@ -32,7 +36,8 @@ __all__ = ["Param", "Method", "METHODS", "denoise", "diverged"]
 class Param:
     """A method parameter: ``kind`` is "continuous" (tunable; ``bounds`` is the
     search range, ``log`` whether to search it on a log scale), "int",
-    "choice", or "aux" (auxiliary data such as precomputed topology)."""
+    "choice", or "aux" (auxiliary data such as precomputed topology, made on
+    the host by ``build(mesh)``; see :meth:`Method.prepare`)."""
 
     default: Any
     kind: str
@@ -40,6 +45,7 @@ class Param:
     bounds: tuple[float, float] | None = None
     log: bool = False
     choices: tuple[str, ...] = ()
+    build: Callable[[Mesh], Any] | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -59,6 +65,16 @@ class Method:
     @property
     def continuous(self) -> tuple[str, ...]:
         return tuple(k for k, p in self.params.items() if p.kind == "continuous")
+
+    @property
+    def aux(self) -> tuple[str, ...]:
+        return tuple(k for k, p in self.params.items() if p.kind == "aux")
+
+    def prepare(self, mesh: Mesh) -> dict[str, Any]:
+        """The auxiliary inputs (host-built topology) for ``mesh``: pass them as
+        keyword arguments to call the method under ``jit`` with the mesh traced.
+        Empty for methods that need none."""
+        return {k: self.params[k].build(mesh) for k in self.aux}
 
     def resolve(self, **params) -> dict[str, Any]:
         unknown = sorted(set(params) - set(self.params))
@@ -80,7 +96,8 @@ class Method:
 
 _BOUNDARY = Param("free", "choice", "boundary vertices: 'free' (all neighbours) or 'curve' (along the boundary)",
                   choices=BOUNDARY_MODES)
-_RINGS = Param(None, "aux", "precomputed face_rings(mesh), needed by the median under jit")
+_GRAPH = Param(None, "aux", "face_graph(mesh), built on the host; pass it to call the method under jit",
+               build=face_graph)
 
 
 def _it(default: int, what: str = "number of iterations") -> Param:
@@ -132,19 +149,44 @@ METHODS: dict[str, Method] = {
             "iterations": _it(1, "outer rounds"),
             "normal_iterations": _it(5, "normal filter passes per round"),
             "vertex_iterations": _it(10, "vertex updates per round"),
-            "rings": _RINGS,
+            "graph": _GRAPH,
         }, "mean filtering of face normals + vertex updating", "Yagou et al. 2002"),
         Method("normal_median", functools.partial(normal_filtering, kind="median"), {
             "iterations": _it(1, "outer rounds"),
             "normal_iterations": _it(5, "normal filter passes per round"),
             "vertex_iterations": _it(10, "vertex updates per round"),
-            "rings": _RINGS,
+            "graph": _GRAPH,
         }, "angle-median filtering of face normals + vertex updating", "Yagou et al. 2002"),
         Method("bilateral", bilateral_denoising, {
             "sigma_c": Param(1.0, "continuous", "closeness σ_c in mean edge lengths", (0.1, 10.0), True),
             "sigma_s": Param(1.0, "continuous", "similarity σ_s in mean edge lengths", (0.01, 10.0), True),
             "iterations": _it(3),
         }, "bilateral mesh denoising", "Fleishman et al. 2003"),
+        Method("bilateral_normal", bilateral_normal_filtering, {
+            "sigma_s": Param(1.0, "continuous", "spatial σ_s, in mean centroid spacings", (0.3, 4.0), True),
+            "sigma_r": Param(0.35, "continuous", "range σ_r between unit normals", (0.05, 1.5), True),
+            "normal_iterations": _it(10, "normal filter passes per round"),
+            "vertex_iterations": _it(20, "vertex updates per round"),
+            "iterations": _it(1, "outer rounds"),
+            "graph": _GRAPH,
+        }, "bilateral filtering of face normals + vertex update (feature preserving)",
+            "Zheng et al. 2011 (local); Sun et al. 2007 update"),
+        Method("guided_normal", guided_normal_filtering, {
+            "sigma_s": Param(1.0, "continuous", "spatial σ_s, in mean centroid spacings", (0.3, 4.0), True),
+            "sigma_r": Param(0.35, "continuous", "range σ_r between guidance normals", (0.05, 1.5), True),
+            "normal_iterations": _it(20, "normal filter passes per round"),
+            "vertex_iterations": _it(20, "vertex updates per round"),
+            "iterations": _it(1, "outer rounds"),
+            "graph": _GRAPH,
+        }, "guided (patch-consistent) normal filtering + vertex update (feature preserving)",
+            "Zhang et al. 2015; Sun et al. 2007 update"),
+        Method("l0", l0_denoising, {
+            "lam": Param(10.0, "continuous", "L0 weight, in units of 0.02 ℓ̄² γ̄ (grid-tuned: zero gradient)",
+                         (0.05, 20.0), True),
+            "alpha": Param(1.0, "continuous", "regulariser weight, in units of 0.1 γ̄", (0.01, 100.0), True),
+            "iterations": _it(40, "half-quadratic steps (β from 1e-3 to 1e3)"),
+            "graph": _GRAPH,
+        }, "L0 minimization of the edge operator (feature preserving)", "He & Schaefer 2013"),
         Method("geometric", geometric_diffusion, {
             "dt": Param(0.3, "continuous", "time step in units of the mean vertex area", (0.01, 100.0), True),
             "rho": Param(1.0, "continuous", "curvature scale of G, in 1/mean edge length", (0.01, 100.0), True),

@@ -6,14 +6,16 @@ mesh, a batch of meshes in one vmapped call, or one setting shared by a
 training set.  See :mod:`jaxmesh.tune.tuner` for the search.
 """
 
-from .noise_level import estimate_noise, umbrella_square_row_norms
+from .auto import CANDIDATES, AutoResult, Candidate, choose_denoiser, edge_tilt
+from .noise_level import NOISE_ESTIMATORS, estimate_noise, umbrella_square_row_norms
 from .objectives import OBJECTIVES, noisy_visual_error_expectation, relative_error, sure_visual_error
 from .space import Coordinate, search_space
 from .tuner import TuneResult, frame, tune, tune_batch, tune_lambda, tune_shared
 
 __all__ = [
     "tune", "tune_lambda", "tune_batch", "tune_shared", "TuneResult", "frame",
-    "estimate_noise", "umbrella_square_row_norms",
+    "estimate_noise", "umbrella_square_row_norms", "NOISE_ESTIMATORS",
+    "choose_denoiser", "AutoResult", "Candidate", "CANDIDATES", "edge_tilt",
     "OBJECTIVES", "relative_error", "sure_visual_error", "noisy_visual_error_expectation",
     "Coordinate", "search_space",
 ]

@@ -97,10 +97,10 @@ class _Config:
     atol: float
     probes: int
 
-    def run(self, mesh: Mesh, values: dict) -> Mesh:
+    def run(self, mesh: Mesh, values: dict, aux: dict) -> Mesh:
         from ..denoise import METHODS
 
-        return METHODS[self.method](mesh, **dict(self.statics), **values)
+        return METHODS[self.method](mesh, **dict(self.statics), **values, **aux)
 
     def values(self, u) -> dict:
         return {c.name: c.value(u[..., k]) for k, c in enumerate(self.coords)}
@@ -130,7 +130,7 @@ def _make_config(method, iterations, coords, objective, blind, grid, max_steps, 
     full = m.resolve(**statics)    # validates names, choices and integer counts
     statics = {k: v for k, v in full.items() if k not in tuned}
     if any(m.params[k].kind == "aux" and v is not None for k, v in statics.items()):
-        raise ValueError("auxiliary inputs (rings) cannot be passed to the tuner")
+        raise ValueError("auxiliary inputs (the face graph) are built by the tuner; do not pass them")
     statics = {k: v for k, v in statics.items() if m.params[k].kind != "aux"}
     n = grid if grid is not None else _GRID_DEFAULT.get(len(coords), 3)
     if n < 3:
@@ -144,7 +144,7 @@ def _make_config(method, iterations, coords, objective, blind, grid, max_steps, 
 # --------------------------------------------------------------------------- the loss
 
 
-def _loss_function(cfg: _Config, noisy: Mesh, clean: Mesh | None, sigma, key):
+def _loss_function(cfg: _Config, noisy: Mesh, clean: Mesh | None, sigma, key, aux: dict):
     """u (*g, p) -> relative loss (*g,) on one mesh already in the tuning frame."""
     probes = rademacher_probes(key, noisy, cfg.probes) if cfg.blind else None
     expected = noisy_visual_error_expectation(noisy, sigma) if cfg.blind else None
@@ -154,10 +154,10 @@ def _loss_function(cfg: _Config, noisy: Mesh, clean: Mesh | None, sigma, key):
         values = cfg.values(u)
         y = jnp.broadcast_to(noisy.vertices, g + noisy.vertices.shape)
         if cfg.blind:
-            denoiser = lambda x: cfg.run(noisy.with_vertices(x), values).vertices  # noqa: E731
+            denoiser = lambda x: cfg.run(noisy.with_vertices(x), values, aux).vertices  # noqa: E731
             f = sure_visual_error(noisy.with_vertices(y), denoiser, sigma, probes) / expected
         else:
-            f = relative_error(cfg.objective, clean, noisy, cfg.run(noisy.with_vertices(y), values))
+            f = relative_error(cfg.objective, clean, noisy, cfg.run(noisy.with_vertices(y), values, aux))
         return jnp.where(jnp.isfinite(f), f, _BAD_LOSS)
 
     return loss
@@ -242,15 +242,15 @@ def _search(loss, cfg: _Config, dtype):
     }
 
 
-def _tune_one(noisy: Mesh, clean: Mesh | None, sigma, key, cfg: _Config):
+def _tune_one(noisy: Mesh, clean: Mesh | None, sigma, key, cfg: _Config, aux: dict):
     """Tune on one mesh (any units); jittable and vmappable over meshes."""
     centre, scale = frame(noisy)
     noisy_n = _to_frame(noisy, centre, scale)
     clean_n = None if clean is None else _to_frame(clean, centre, scale)
     sigma_n = None if sigma is None else sigma / scale
-    loss = _loss_function(cfg, noisy_n, clean_n, sigma_n, key)
+    loss = _loss_function(cfg, noisy_n, clean_n, sigma_n, key, aux)
     out = _search(loss, cfg, noisy.dtype)
-    result_n = cfg.run(noisy_n, cfg.values(out["u"]))
+    result_n = cfg.run(noisy_n, cfg.values(out["u"]), aux)
     out["vertices"] = result_n.vertices * scale[..., None, None] + centre[..., None, :]
     if clean is None:   # SURE needs its own pass (a JVP); in mesh units: relative SURE x E[E(noisy)]
         out["loss"] = loss(out["u"][None])[0]
@@ -270,7 +270,7 @@ def _named(cfg: _Config, out: dict, final: int) -> dict:
     return out
 
 
-def _shared_search(noisy: Mesh, clean: Mesh, sigma, key, cfg: _Config):
+def _shared_search(noisy: Mesh, clean: Mesh, sigma, key, cfg: _Config):  # methods without aux inputs
     """One u for a padded batch of meshes: the loss is the mean of the per-mesh
     relative losses (each mesh in its own frame)."""
     centre, scale = jax.vmap(frame)(noisy)
@@ -280,7 +280,7 @@ def _shared_search(noisy: Mesh, clean: Mesh, sigma, key, cfg: _Config):
     keys = jax.random.split(key, scale.shape[0])
 
     def loss(u):
-        per = jax.vmap(lambda nm, cm, s, k: _loss_function(cfg, nm, cm, s, k)(u))(
+        per = jax.vmap(lambda nm, cm, s, k: _loss_function(cfg, nm, cm, s, k, {})(u))(
             noisy_n, clean_n, sigma_n, keys)
         return jnp.mean(per, axis=0)
 
@@ -336,7 +336,8 @@ class TuneResult(eqx.Module):
         if jnp.ndim(next(iter(self.params.values()))) != 0:
             raise ValueError("apply needs a single result, not a batched one (index it first)")
         centre, scale = frame(mesh)
-        out = METHODS[self.method](_to_frame(mesh, centre, scale), **self.fixed, **self.params)
+        method = METHODS[self.method]
+        out = method(_to_frame(mesh, centre, scale), **self.fixed, **self.params, **method.prepare(mesh))
         return mesh.with_vertices(out.vertices * scale[..., None, None] + centre[..., None, :])
 
 
@@ -379,6 +380,27 @@ def _sigma_for(noisy: Mesh, sigma, blind: bool):
 _tune_jit = jax.jit(_tune_one, static_argnames="cfg")
 
 
+def _method(name: str):
+    from ..denoise import METHODS
+
+    if name not in METHODS:
+        raise ValueError(f"unknown method {name!r}; choose one of {sorted(METHODS)}")
+    return METHODS[name]
+
+
+def _aux_for_batch(method: str, noisy, singles) -> dict:
+    """Host-built inputs of ``method`` for a batch: shared when every element has the
+    same connectivity (a mesh with vertices (B, V, 3)); padded batches of different
+    meshes are refused for methods that need them."""
+    m = _method(method)
+    if not m.aux:
+        return {}
+    if not isinstance(noisy, Mesh):
+        raise ValueError(f"{method!r} needs the host-built face graph of each mesh, so tune_batch takes "
+                         "one mesh with vertices (B, V, 3) for it, not a padded batch of different meshes")
+    return m.prepare(singles[0])
+
+
 def tune(noisy: Mesh, clean: Mesh | None = None, method: str = "kernel", *,
          iterations: int | Sequence[int] | None = None, names: Sequence[str] | None = None,
          bounds: dict | None = None, objective: str = "visual", sigma=None, grid: int | None = None,
@@ -411,10 +433,11 @@ def tune(noisy: Mesh, clean: Mesh | None = None, method: str = "kernel", *,
         raise ValueError("iterations: give at least one count")
     s = _sigma_for(noisy, sigma, blind)
     k = jax.random.PRNGKey(key) if isinstance(key, int) else key
+    aux = _method(method).prepare(noisy)
     best = None
     for it in counts:
         cfg = _make_config(method, it, coords, objective, blind, grid, max_steps, rtol, atol, probes, fixed)
-        out = _tune_jit(noisy, clean, s, k, cfg=cfg)
+        out = _tune_jit(noisy, clean, s, k, cfg=cfg, aux=aux)
         res = _result(cfg, out, s, noisy.with_vertices(out["vertices"]))
         if best is None or float(res.loss) < float(best.loss):
             best = res
@@ -488,9 +511,10 @@ def tune_batch(noisy, clean=None, method: str = "kernel", *, iterations: int | N
             except ValueError as err:
                 raise ValueError(f"batch element {k}: {err}") from None
     key = jax.random.PRNGKey(key) if isinstance(key, int) else key
-    in_axes = (axes, None if clean is None else caxes, None if s is None else 0, None)
-    run = jax.jit(jax.vmap(lambda n, c, sg, kk: _tune_one(n, c, sg, kk, cfg), in_axes=in_axes))
-    out = run(stacked, clean_stacked, s, key)
+    aux = _aux_for_batch(method, noisy, singles)
+    in_axes = (axes, None if clean is None else caxes, None if s is None else 0, None, None)
+    run = jax.jit(jax.vmap(lambda n, c, sg, kk, ax: _tune_one(n, c, sg, kk, cfg, ax), in_axes=in_axes))
+    out = run(stacked, clean_stacked, s, key, aux)
 
     outputs = unpack(out["vertices"])
     if clean is not None:   # per unpadded mesh: padding must not count in the 1/2m
@@ -515,6 +539,9 @@ def tune_shared(noisy, clean=None, method: str = "kernel", *, iterations: int | 
     from ..batch import pad_batch
 
     noisy = list(noisy)
+    if _method(method).aux:
+        raise ValueError(f"tune_shared pads meshes of different sizes, which {method!r} (it needs the "
+                         "host-built face graph of each mesh) does not support; tune each mesh with tune")
     batch = pad_batch(noisy)
     clean_batch = None
     if clean is not None:
