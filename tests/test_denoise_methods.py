@@ -12,11 +12,15 @@ import trimesh
 from jax.test_util import check_grads
 
 import jaxmesh
-from jaxmesh.denoise import METHODS, denoise, diverged, face_rings
+from jaxmesh.denoise import METHODS, denoise, diverged
 from jaxmesh.metrics import visual_error
 
 NAMES = sorted(METHODS)
 SCALE_FREE = [n for n in NAMES if n != "kernel"]  # λ of the kernel flow is a squared length
+# L0 solves to a relative residual of 1e-4 with CG: a batch runs until every element
+# has converged, so the elements agree with single runs to that accuracy, not to rounding
+SOLVER_ATOL = {"l0": 1e-6}
+HEAVY_ON_SPOT = ("l0",)   # 40 CG solves on the 2.9k-vertex spot: -m slow
 
 
 @pytest.fixture(scope="module")
@@ -32,7 +36,11 @@ def small_sphere():
     return jaxmesh.Mesh.from_arrays(s.vertices + 0.03 * rng.standard_normal(s.vertices.shape), s.faces)
 
 
-@pytest.mark.parametrize("name", NAMES)
+def _spot_cases(names=None):
+    return [pytest.param(n, marks=[pytest.mark.slow] if n in HEAVY_ON_SPOT else []) for n in (names or NAMES)]
+
+
+@pytest.mark.parametrize("name", _spot_cases())
 def test_denoises_spot(noisy_spot, name):
     clean, noisy = noisy_spot
     out = METHODS[name](noisy)
@@ -44,8 +52,8 @@ def test_denoises_spot(noisy_spot, name):
 def test_jit_equals_eager_and_batch_equals_loop(small_sphere, name):
     method = METHODS[name]
     eager = method(small_sphere).vertices
-    # the median needs its face rings from the host when traced
-    aux = {"rings": face_rings(small_sphere)} if "rings" in method.params else {}
+    # the normal-filtering methods need their face graph from the host when traced
+    aux = method.prepare(small_sphere)
     jitted = eqx.filter_jit(lambda m, aux: method(m, **aux))(small_sphere, aux).vertices
     np.testing.assert_allclose(jitted, eager, rtol=1e-9, atol=1e-11)
     keys = jax.random.split(jax.random.PRNGKey(1), 3)
@@ -53,20 +61,20 @@ def test_jit_equals_eager_and_batch_equals_loop(small_sphere, name):
     batched = method(small_sphere.with_vertices(copies)).vertices
     for b in range(3):
         single = method(small_sphere.with_vertices(copies[b])).vertices
-        np.testing.assert_allclose(batched[b], single, rtol=1e-8, atol=1e-10)
+        np.testing.assert_allclose(batched[b], single, rtol=1e-8, atol=SOLVER_ATOL.get(name, 1e-10))
 
 
 def assert_same_up_to_median_ties(name, b, a):
     """The angle median is a discrete choice: rounding can flip a near tie, which
     moves a few vertices by a fraction of an edge.  Everything else must agree."""
     if name != "normal_median":
-        np.testing.assert_allclose(b, a, atol=1e-9)
+        np.testing.assert_allclose(b, a, atol=max(1e-9, SOLVER_ATOL.get(name, 0)))
         return
     err = np.linalg.norm(np.asarray(b - a), axis=1)
     assert np.median(err) < 1e-9 and err.max() < 0.02
 
 
-@pytest.mark.parametrize("name", NAMES)
+@pytest.mark.parametrize("name", _spot_cases())
 def test_translation_invariance(noisy_spot, name):
     _, noisy = noisy_spot
     shift = jnp.array([0.5, -0.3, 0.2])
@@ -75,7 +83,7 @@ def test_translation_invariance(noisy_spot, name):
     assert_same_up_to_median_ties(name, b, a)
 
 
-@pytest.mark.parametrize("name", SCALE_FREE)
+@pytest.mark.parametrize("name", _spot_cases(SCALE_FREE))
 def test_scale_invariance(noisy_spot, name):
     _, noisy = noisy_spot
     a = METHODS[name](noisy).vertices
@@ -105,7 +113,10 @@ def test_gradient_in_each_continuous_parameter(small_sphere, name, param):
     check_grads(loss, (jnp.asarray(float(base)),), order=1, modes=("fwd", "rev"), atol=1e-5, rtol=1e-4)
 
 
-@pytest.mark.parametrize("name", NAMES)
+# guided filtering chooses patches by an argmin: on the jittered sphere near ties flip under
+# finite-difference steps; its position gradient is checked on a box, where the choice is
+# stable (test_feature_denoise.py)
+@pytest.mark.parametrize("name", [n for n in NAMES if n != "guided_normal"])
 def test_gradient_in_the_positions(small_sphere, name):
     method = METHODS[name]
     w = jax.random.normal(jax.random.PRNGKey(4), small_sphere.vertices.shape)

@@ -20,7 +20,7 @@ import jaxmesh  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from shared_meshes import load as load_shared  # noqa: E402
-from jaxmesh.denoise import METHODS, face_rings  # noqa: E402
+from jaxmesh.denoise import METHODS, face_graph  # noqa: E402
 from jaxmesh.metrics import mean_normal_angle_error, visual_error  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -84,7 +84,7 @@ def evaluate_method(name: str, clean, noisy, rings=None):
     points = [_to_params(name, q) for q in _product(cont)]
     rows = []
     for static in statics:
-        aux = {"rings": rings} if "rings" in METHODS[name].params else {}
+        aux = {"graph": rings} if "graph" in METHODS[name].params else {}
         if points[0]:
             b = len(points)
             batch = noisy.with_vertices(jnp.broadcast_to(noisy.vertices, (b,) + noisy.vertices.shape))
@@ -190,7 +190,7 @@ def refine(name: str, clean, noisy, best: dict, rings=None, steps: int = 9, spre
     b = len(points)
     batch = noisy.with_vertices(jnp.broadcast_to(noisy.vertices, (b,) + noisy.vertices.shape))
     vals = {k: jnp.asarray([p[k] for p in points]) for k in points[0]}
-    aux = {"rings": rings} if "rings" in METHODS[name].params else {}
+    aux = {"graph": rings} if "graph" in METHODS[name].params else {}
     out = METHODS[name](batch, **static, **vals, **aux)
     e, a = np.asarray(visual_error(clean, out)), np.asarray(mean_normal_angle_error(clean, out))
     return [({**static, **p}, float(e[k]), float(a[k]), float("nan")) for k, p in enumerate(points)]
@@ -212,4 +212,5 @@ def evaluate_peer(name: str, clean, noisy):
 
 
 def rings_for(mesh):
-    return face_rings(mesh)
+    """The host-built face graph that the normal-filtering methods need under jit."""
+    return face_graph(mesh)

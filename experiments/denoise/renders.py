@@ -44,7 +44,7 @@ def main() -> None:
     rings = rings_for(noisy)
     panels = [("original", clean), (f"noisy σ={args.sigma} mean edge", noisy)]
     for name, params in best.items():
-        aux = {"rings": rings} if "rings" in METHODS[name].params else {}
+        aux = {"graph": rings} if "graph" in METHODS[name].params else {}
         out = METHODS[name](noisy, **{k: (int(v) if METHODS[name].params[k].kind == "int" else v)
                                       for k, v in params.items()}, **aux)
         e = float(visual_error(clean, out)) / float(visual_error(clean, noisy))

@@ -138,10 +138,12 @@ def _l0_single(mesh: Mesh, graph: FaceGraph, p_star, lam, alpha, iterations: int
                                        tags=lx.positive_semidefinite_tag)
         rhs = p_star + beta * _apply_t(idx, coef, delta, nv)
         # Jacobi preconditioner: the diagonal of I + α RᵀR + β DᵀD
-        diag = 1 + alpha_k * _squares(r_idx, r_coef, nv) + beta * _squares(idx, coef, nv)
+        # (the start and the preconditioner change the path, not the solution: no gradient through them)
+        diag = jax.lax.stop_gradient(1 + alpha_k * _squares(r_idx, r_coef, nv) + beta * _squares(idx, coef, nv))
         pre = lx.TaggedLinearOperator(lx.DiagonalLinearOperator(jnp.broadcast_to(1 / diag[:, None], p.shape)),
                                       lx.positive_semidefinite_tag)
-        return lx.linear_solve(op, rhs, solver, options={"y0": p, "preconditioner": pre}, throw=False).value
+        options = {"y0": jax.lax.stop_gradient(p), "preconditioner": pre}
+        return lx.linear_solve(op, rhs, solver, options=options, throw=False).value
 
     return iterate(step, p_star, iterations, indexed=True)
 
