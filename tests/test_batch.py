@@ -25,7 +25,10 @@ def three_meshes():
     return [jaxmesh.add_noise(m, 0.2, k) for k, m in enumerate([grid, spot, octa])]
 
 
-@pytest.mark.parametrize("name", [n for n in sorted(METHODS) if n != "normal_median"])
+# methods with a host-built face graph (the median and the feature-preserving filters) batch
+# over copies of one mesh (tests/test_denoise_methods.py), not over padded different meshes:
+# the graph of each mesh would have to be padded too (noted for the dataset-runner issue)
+@pytest.mark.parametrize("name", [n for n in sorted(METHODS) if not METHODS[n].aux])
 def test_padded_batch_equals_single_calls(three_meshes, name):
     batch = pad_batch(three_meshes)
     out = jax.vmap(lambda m: METHODS[name](m))(batch.mesh)

@@ -127,7 +127,8 @@ def test_ring_sum_equals_explicit_face_rings(noisy):
 
 
 def np_normal_filtering(v, faces, kind, normal_iterations, vertex_iterations):
-    """Yagou et al. 2002, one round, written with explicit loops."""
+    """Yagou et al. 2002's normal filters, then Sun et al. 2007's vertex update
+    (jaxmesh's one update for every two-step method), one round, explicit loops."""
     n, area = np_face_normals_areas(v, faces)
     rings = [[g for g in range(len(faces)) if set(faces[g]) & set(faces[f])] for f in range(len(faces))]
     for _ in range(normal_iterations):
@@ -144,10 +145,10 @@ def np_normal_filtering(v, faces, kind, normal_iterations, vertex_iterations):
     for _ in range(vertex_iterations):
         c = x[faces].mean(axis=1)
         move, total = np.zeros_like(x), np.zeros(len(x))
-        for f, (a, b, cc) in enumerate(faces):
+        for f, (a, b, cc) in enumerate(faces):   # the shared update of Sun et al. 2007: uniform weights
             for i in (a, b, cc):
-                move[i] += area[f] * n[f] * (n[f] @ (c[f] - x[i]))
-                total[i] += area[f]
+                move[i] += n[f] * (n[f] @ (c[f] - x[i]))
+                total[i] += 1
         x = x + move / total[:, None]
     return x
 
