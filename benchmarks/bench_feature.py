@@ -18,8 +18,6 @@ Numbers depend on the machine; compare the ratios.
 from __future__ import annotations
 
 import argparse
-import statistics
-import time
 
 import jax
 
@@ -30,15 +28,7 @@ import trimesh  # noqa: E402
 
 import jaxmesh  # noqa: E402
 from jaxmesh.denoise import METHODS  # noqa: E402
-
-
-def median_time(fn, repeat: int) -> float:
-    out = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        fn()
-        out.append(time.perf_counter() - t)
-    return statistics.median(out)
+from bench_denoise import median_time  # noqa: E402  (same folder)
 
 
 def jaxmesh_time(name: str, noisy, repeat: int, **params) -> float:

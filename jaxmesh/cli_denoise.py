@@ -233,10 +233,8 @@ def _run_denoise(args) -> int:
         return _list_methods()
     if args.method == "auto":
         return _run_auto(args)
-    import jax.numpy as jnp
-
     from .denoise import METHODS, diverged
-    from .io import load, save
+    from .io import save
     from .transforms import normalize
 
     if args.method not in METHODS:
@@ -257,13 +255,7 @@ def _run_denoise(args) -> int:
         raise CLIError("tuning runs in the unit-diagonal frame; drop --raw-units")
     if args.noise_sigma is not None and not (args.noise_sigma > 0):
         raise CLIError(f"--noise-sigma must be > 0, got {args.noise_sigma}")
-    out = _positional_output(args)
-    label, mesh = _load_input(args)
-    _check_output(out, args.force)
-    reference = load(args.reference) if args.reference else None
-    if reference is not None and (reference.num_vertices != mesh.num_vertices
-                                  or not bool(jnp.all(reference.faces == mesh.faces))):
-        raise CLIError(f"--reference {args.reference} does not have the connectivity of {label}")
+    label, mesh, reference, out = _load_pair(args)
 
     if args.raw_units:
         work, transform = mesh, None

@@ -28,8 +28,6 @@ import jax
 
 jax.config.update("jax_enable_x64", True)
 
-import numpy as np  # noqa: E402
-
 import jaxmesh  # noqa: E402
 from jaxmesh.denoise import METHODS  # noqa: E402
 from jaxmesh.metrics import mean_normal_angle_error, visual_error  # noqa: E402
@@ -39,7 +37,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from shared_meshes import load as load_shared  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parents[2] / "experiments" / "results" / "denoise"
-MESHES = ("fandisk", "bunny", "camelhead", "cow", "spot", "maxplanck")
+MESHES = ("spot", "cow", "maxplanck", "fandisk", "camelhead", "bunny")   # small to large
 SIGMAS = (0.1, 0.3)
 MODELS = ("isotropic", "normal")
 ORACLE = ("taubin", "bilateral_normal", "guided_normal", "l0")
@@ -60,7 +58,8 @@ def oracle(name: str, clean, noisy) -> dict:
         params = {"lam": lam}
     else:
         its = (2, 5, 10, 20, 40) if name == "taubin" else None
-        r = tune(noisy, clean, name, objective="normal", iterations=its)
+        names = None if name == "taubin" else ("sigma_s", "sigma_r")   # tangential at its default 0.1
+        r = tune(noisy, clean, name, objective="normal", iterations=its, names=names)
         err = errors(clean, r.mesh)
         params = {**{k: float(v) for k, v in r.params.items()}, **r.fixed}
     return {"params": params, **err, "seconds": round(time.perf_counter() - start, 1)}

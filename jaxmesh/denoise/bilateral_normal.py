@@ -18,13 +18,16 @@ One outer round, from the current positions:
    with the guidance g = n itself (plain bilateral filtering: the range kernel
    compares the normals being filtered; ``sigma_r`` is a distance between unit
    vectors, 2 sin(θ/2) for an angle θ);
-3. ``vertex_iterations`` steps of :func:`~jaxmesh.denoise.vertex_update`.
+3. ``vertex_iterations`` steps of :func:`~jaxmesh.denoise.vertex_update`, with
+   tangential relaxation ``tangential`` (0.1 by default; 0 is the paper's update).
 
-Differentiable in the positions and in ``sigma_s`` and ``sigma_r`` (every
-step is smooth away from zero-area faces).
+Differentiable in the positions and in ``sigma_s``, ``sigma_r`` and
+``tangential`` (every step is smooth away from zero-area faces).
 """
 
 from __future__ import annotations
+
+from typing import Callable
 
 import jax.numpy as jnp
 from jaxtyping import Array, Float
@@ -36,7 +39,8 @@ from ._loop import check_iterations, iterate
 from .face_graph import FaceGraph, centroid_spacing, face_centroids, face_graph
 from .vertex_update import vertex_update
 
-__all__ = ["bilateral_normal_filtering", "spatial_weights", "joint_bilateral_normals"]
+__all__ = ["bilateral_normal_filtering", "joint_bilateral_denoising", "spatial_weights",
+           "joint_bilateral_normals"]
 
 
 def spatial_weights(
@@ -64,20 +68,38 @@ def joint_bilateral_normals(
     return safe_normalize(jnp.sum(w[..., None] * normals[..., graph.ring, :], axis=-2))
 
 
-def bilateral_normal_filtering(
-    mesh: Mesh, sigma_s=1.0, sigma_r=0.35, normal_iterations: int = 10, vertex_iterations: int = 20,
-    iterations: int = 1, graph: FaceGraph | None = None,
+def joint_bilateral_denoising(
+    mesh: Mesh, guidance: Callable, sigma_s, sigma_r, normal_iterations: int, vertex_iterations: int,
+    iterations: int, tangential, graph: FaceGraph | None,
 ) -> Mesh:
-    """``iterations`` rounds of (bilateral normal filter ``normal_iterations``
-    times, then ``vertex_iterations`` vertex updates); module docstring."""
+    """The two-step loop shared by bilateral and guided normal filtering:
+    ``iterations`` rounds of (spatial weights at the current positions;
+    ``normal_iterations`` passes n ← joint_bilateral_normals(n, guidance(graph, n, areas));
+    ``vertex_iterations`` steps of :func:`vertex_update` with ``tangential``)."""
     check_iterations(normal_iterations, "normal_iterations")
     check_iterations(vertex_iterations, "vertex_iterations")
     graph = face_graph(mesh) if graph is None else graph
 
     def step(x):
+        geo = mesh.with_vertices(x)
         w = spatial_weights(mesh, graph, x, sigma_s)
-        n0 = face_normals(mesh.with_vertices(x))
-        n = iterate(lambda n: joint_bilateral_normals(graph, n, n, w, sigma_r), n0, normal_iterations)
-        return vertex_update(mesh, x, n, vertex_iterations)
+        areas = face_areas(geo)
+
+        def normal_pass(n):
+            return joint_bilateral_normals(graph, n, guidance(graph, n, areas), w, sigma_r)
+
+        n = iterate(normal_pass, face_normals(geo), normal_iterations)
+        return vertex_update(mesh, x, n, vertex_iterations, tangential=tangential)
 
     return mesh.with_vertices(iterate(step, mesh.vertices, iterations))
+
+
+def bilateral_normal_filtering(
+    mesh: Mesh, sigma_s=1.0, sigma_r=0.35, normal_iterations: int = 10, vertex_iterations: int = 20,
+    iterations: int = 1, tangential=0.1, graph: FaceGraph | None = None,
+) -> Mesh:
+    """``iterations`` rounds of (bilateral normal filter ``normal_iterations``
+    times, then ``vertex_iterations`` vertex updates with tangential relaxation
+    ``tangential``); module docstring."""
+    return joint_bilateral_denoising(mesh, lambda graph, n, areas: n, sigma_s, sigma_r, normal_iterations,
+                                     vertex_iterations, iterations, tangential, graph)

@@ -22,7 +22,8 @@ One normal pass is then the joint bilateral filter
 n_f ← normalize(Σ_{g∈N(f)} A_g W_s(f, g) W_r(‖g_f − g_g‖) n_g) with the same
 kernels as bilateral normal filtering; the guidance is recomputed from the
 current normals before every pass.  ``normal_iterations`` passes, then
-``vertex_iterations`` vertex updates, make one of ``iterations`` rounds.
+``vertex_iterations`` vertex updates (with tangential relaxation ``tangential``,
+:mod:`.vertex_update`), make one of ``iterations`` rounds.
 
 Differentiability: the patch choice is piecewise constant (an argmin; it is
 computed under ``stop_gradient``), so gradients with respect to the positions
@@ -37,12 +38,9 @@ import jax.numpy as jnp
 from jaxtyping import Array, Float, Int
 
 from .._private import safe_normalize
-from ..geometry import face_areas, face_normals
 from ..mesh import Mesh
-from ._loop import check_iterations, iterate
-from .bilateral_normal import joint_bilateral_normals, spatial_weights
-from .face_graph import FaceGraph, face_graph
-from .vertex_update import vertex_update
+from .bilateral_normal import joint_bilateral_denoising
+from .face_graph import FaceGraph
 
 __all__ = ["guided_normal_filtering", "patch_inconsistency", "guidance_normals"]
 
@@ -83,23 +81,10 @@ def guidance_normals(
 
 def guided_normal_filtering(
     mesh: Mesh, sigma_s=1.0, sigma_r=0.35, normal_iterations: int = 20, vertex_iterations: int = 20,
-    iterations: int = 1, graph: FaceGraph | None = None,
+    iterations: int = 1, tangential=0.1, graph: FaceGraph | None = None,
 ) -> Mesh:
     """``iterations`` rounds of (guided normal filter ``normal_iterations``
-    times, then ``vertex_iterations`` vertex updates); module docstring."""
-    check_iterations(normal_iterations, "normal_iterations")
-    check_iterations(vertex_iterations, "vertex_iterations")
-    graph = face_graph(mesh) if graph is None else graph
-
-    def step(x):
-        geo = mesh.with_vertices(x)
-        w = spatial_weights(mesh, graph, x, sigma_s)
-        areas = face_areas(geo)
-
-        def normal_pass(n):
-            return joint_bilateral_normals(graph, n, guidance_normals(graph, n, areas), w, sigma_r)
-
-        n = iterate(normal_pass, face_normals(geo), normal_iterations)
-        return vertex_update(mesh, x, n, vertex_iterations)
-
-    return mesh.with_vertices(iterate(step, mesh.vertices, iterations))
+    times, then ``vertex_iterations`` vertex updates with tangential relaxation
+    ``tangential``); module docstring."""
+    return joint_bilateral_denoising(mesh, guidance_normals, sigma_s, sigma_r, normal_iterations,
+                                     vertex_iterations, iterations, tangential, graph)

@@ -49,7 +49,7 @@ import jax.numpy as jnp
 import lineax as lx
 from jaxtyping import Array, Float
 
-from .._private import safe_divide, segment_sum_rows, segment_sum_scalars
+from .._private import safe_divide, safe_norm, segment_sum_rows, segment_sum_scalars
 from ..geometry import face_areas, face_normals, mean_edge_length
 from ..mesh import Mesh
 from ._loop import check_iterations, iterate
@@ -103,7 +103,7 @@ def mean_dihedral_angle(mesh: Mesh, graph: FaceGraph) -> Float[Array, "*batch"]:
     """γ̄: mean angle between the normals of the two faces of every interior edge."""
     n = face_normals(mesh)
     a, b = n[..., graph.edge_faces[:, 0], :], n[..., graph.edge_faces[:, 1], :]
-    cross = jnp.linalg.norm(jnp.cross(a, b), axis=-1)
+    cross = safe_norm(jnp.cross(a, b))
     ang = jnp.arctan2(cross, jnp.sum(a * b, axis=-1))
     w = graph.edge_mask.astype(ang.dtype)
     return safe_divide(jnp.sum(ang * w, axis=-1), jnp.sum(w))

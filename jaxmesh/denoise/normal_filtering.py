@@ -30,8 +30,6 @@ from typing import Literal, NamedTuple
 
 import jax
 import jax.numpy as jnp
-import numpy as np
-import scipy.sparse as sp
 from jaxtyping import Array, Bool, Float, Int
 
 from .._private import safe_normalize, segment_sum_rows
@@ -53,26 +51,10 @@ class FaceRings(NamedTuple):
 
 
 def face_rings(mesh: Mesh) -> FaceRings:
-    """N(f) for every face, built on the host (needs concrete ``mesh.faces``)."""
-    try:
-        faces = np.asarray(mesh.faces)
-    except jax.errors.TracerArrayConversionError as err:
-        raise ValueError(
-            "face_rings needs the connectivity on the host: call it outside jit and pass "
-            "the result as rings=") from err
-    nf, nv = faces.shape[0], mesh.num_vertices
-    inc = sp.csr_matrix((np.ones(3 * nf), (np.repeat(np.arange(nf), 3), faces.reshape(-1))),
-                        shape=(nf, nv))
-    pairs = (inc @ inc.T).tocsr()
-    counts = np.diff(pairs.indptr)
-    k = int(counts.max()) if nf else 1
-    row = np.repeat(np.arange(nf), counts)
-    col = np.arange(pairs.indices.size) - np.repeat(pairs.indptr[:-1], counts)
-    index = np.repeat(np.arange(nf)[:, None], k, axis=1)
-    mask = np.zeros((nf, k), bool)
-    index[row, col] = pairs.indices
-    mask[row, col] = True
-    return FaceRings(jnp.asarray(index, jnp.int32), jnp.asarray(mask))
+    """N(f) for every face, built on the host (needs concrete ``mesh.faces``);
+    the ring part of :func:`~jaxmesh.denoise.face_graph`."""
+    g = face_graph(mesh)
+    return FaceRings(g.ring, g.ring_mask)
 
 
 def ring_sum(mesh: Mesh, values: Float[Array, "*batch F d"]) -> Float[Array, "*batch F d"]:

@@ -104,6 +104,20 @@ def _it(default: int, what: str = "number of iterations") -> Param:
     return Param(default, "int", what)
 
 
+def _normal_filter_params(normal_iterations: int) -> dict[str, Param]:
+    """The parameters of the joint-bilateral two-step filters (bilateral and guided)."""
+    return {
+        "sigma_s": Param(1.0, "continuous", "spatial σ_s, in mean centroid spacings", (0.3, 4.0), True),
+        "sigma_r": Param(0.35, "continuous", "range σ_r between (guidance) unit normals", (0.05, 1.5), True),
+        "tangential": Param(0.1, "continuous", "tangential relaxation per vertex update (0: Sun et al.)",
+                            (0.0, 0.5)),
+        "normal_iterations": _it(normal_iterations, "normal filter passes per round"),
+        "vertex_iterations": _it(20, "vertex updates per round"),
+        "iterations": _it(1, "outer rounds"),
+        "graph": _GRAPH,
+    }
+
+
 METHODS: dict[str, Method] = {
     m.name: m
     for m in [
@@ -162,24 +176,12 @@ METHODS: dict[str, Method] = {
             "sigma_s": Param(1.0, "continuous", "similarity σ_s in mean edge lengths", (0.01, 10.0), True),
             "iterations": _it(3),
         }, "bilateral mesh denoising", "Fleishman et al. 2003"),
-        Method("bilateral_normal", bilateral_normal_filtering, {
-            "sigma_s": Param(1.0, "continuous", "spatial σ_s, in mean centroid spacings", (0.3, 4.0), True),
-            "sigma_r": Param(0.35, "continuous", "range σ_r between unit normals", (0.05, 1.5), True),
-            "normal_iterations": _it(10, "normal filter passes per round"),
-            "vertex_iterations": _it(20, "vertex updates per round"),
-            "iterations": _it(1, "outer rounds"),
-            "graph": _GRAPH,
-        }, "bilateral filtering of face normals + vertex update (feature preserving)",
-            "Zheng et al. 2011 (local); Sun et al. 2007 update"),
-        Method("guided_normal", guided_normal_filtering, {
-            "sigma_s": Param(1.0, "continuous", "spatial σ_s, in mean centroid spacings", (0.3, 4.0), True),
-            "sigma_r": Param(0.35, "continuous", "range σ_r between guidance normals", (0.05, 1.5), True),
-            "normal_iterations": _it(20, "normal filter passes per round"),
-            "vertex_iterations": _it(20, "vertex updates per round"),
-            "iterations": _it(1, "outer rounds"),
-            "graph": _GRAPH,
-        }, "guided (patch-consistent) normal filtering + vertex update (feature preserving)",
-            "Zhang et al. 2015; Sun et al. 2007 update"),
+        Method("bilateral_normal", bilateral_normal_filtering, _normal_filter_params(10),
+               "bilateral filtering of face normals + vertex update (feature preserving)",
+               "Zheng et al. 2011 (local); Sun et al. 2007 update"),
+        Method("guided_normal", guided_normal_filtering, _normal_filter_params(20),
+               "guided (patch-consistent) normal filtering + vertex update (feature preserving)",
+               "Zhang et al. 2015; Sun et al. 2007 update"),
         Method("l0", l0_denoising, {
             "lam": Param(10.0, "continuous", "L0 weight, in units of 0.02 ℓ̄² γ̄ (grid-tuned: zero gradient)",
                          (0.05, 20.0), True),
