@@ -3,6 +3,7 @@ when ../shared/meshes is absent), x64 and strict dtype promotion."""
 
 from __future__ import annotations
 
+import gc
 import os
 from pathlib import Path
 
@@ -18,6 +19,16 @@ import jaxmesh  # noqa: E402
 SHARED_MESHES = Path(
     os.environ.get("JAXMESH_SHARED_MESHES", Path(__file__).resolve().parents[1].parent / "shared" / "meshes")
 )
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _release_compiled_programs():
+    """Drop JAX's compiled programs after each test module.  Every XLA executable
+    holds memory mappings; a whole-suite process that keeps them all passes the
+    kernel's vm.max_map_count (65,530) and XLA crashes (SIGSEGV) in its next compile."""
+    yield
+    jax.clear_caches()
+    gc.collect()
 
 
 def shared_mesh_path(name: str) -> Path:

@@ -21,6 +21,10 @@ SCALE_FREE = [n for n in NAMES if n != "kernel"]  # λ of the kernel flow is a s
 # has converged, so the elements agree with single runs to that accuracy, not to rounding
 SOLVER_ATOL = {"l0": 1e-6}
 HEAVY_ON_SPOT = ("l0",)   # 40 CG solves on the 2.9k-vertex spot: -m slow
+# central-difference steps where the default (1e-4) leaves a truncation error above the
+# tolerance: bilateral normal filtering's narrow range kernel is strongly curved
+# (error 9.2e-5 relative at 1e-4, 9.2e-7 at 1e-5, 9e-9 at 1e-6: O(eps²), the gradient is exact)
+FD_EPS = {"bilateral_normal": 1e-6}
 
 
 @pytest.fixture(scope="module")
@@ -124,7 +128,8 @@ def test_gradient_in_the_positions(small_sphere, name):
     def loss(x):
         return jnp.sum(w * method(small_sphere.with_vertices(x), iterations=1).vertices)
 
-    check_grads(loss, (small_sphere.vertices,), order=1, modes=("rev",), atol=1e-5, rtol=1e-4)
+    check_grads(loss, (small_sphere.vertices,), order=1, modes=("rev",), atol=1e-5, rtol=1e-4,
+                eps=FD_EPS.get(name))
 
 
 @pytest.mark.parametrize("name", [_slow_if(("geometric", "cotangent_implicit"), n) for n in

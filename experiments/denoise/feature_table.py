@@ -9,7 +9,8 @@ mesh's area-weighted vertex normals), seed 0, meshes scaled to a unit
 bounding-box diagonal.  Oracle: the tuner with the clean mesh in hand and
 objective "normal" (mean face-normal angle), continuous parameters by BFGS
 from a coarse grid; Taubin's iteration count chosen from (2, 5, 10, 20, 40);
-L0's λ from a grid (its gradient in λ is zero).  Blind: ``choose_denoiser``
+L0's λ from a grid (its gradient in λ is zero); bilateral and guided
+normal filtering tune σ_s and σ_r, the tangential relaxation at its default 0.1.  Blind: ``choose_denoiser``
 (no clean mesh, σ estimated).  Plus the fandisk with noise along the normals
 at 0.3ℓ̄ on seeds 0, 1, 2 (the issue's headline case).
 
