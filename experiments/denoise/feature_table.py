@@ -112,11 +112,22 @@ def main() -> None:
     ap.add_argument("--resume", action="store_true")
     ap.add_argument("--seeds", action="store_true", help="also run the headline case on seeds 0, 1, 2")
     ap.add_argument("--report-only", action="store_true", help="write the tables from the saved json")
+    ap.add_argument("--blind-only", action="store_true",
+                    help="recompute the blind column of the saved cells (after a change to the chooser)")
     args = ap.parse_args()
     RESULTS.mkdir(parents=True, exist_ok=True)
     path = RESULTS / "feature_table.json"
     done = json.loads(path.read_text()) if args.resume and path.exists() else {"cells": [], "seeds": []}
     have = {(r["mesh"], r["sigma"], r["model"]) for r in done["cells"]}
+    if args.blind_only:
+        for r in done["cells"] + done["seeds"]:
+            clean = jaxmesh.normalize(load_shared(r["mesh"]))
+            noisy = jaxmesh.add_noise(clean, r["sigma"], jax.random.PRNGKey(r["seed"]),
+                                      along_normals=r["model"] == "normal")
+            r["blind"] = blind(clean, noisy)
+            print(f"{r['mesh']} {r['sigma']} {r['model']} seed {r['seed']}: auto {r['blind']['method']} "
+                  f"{r['blind']['normal_deg']:.2f}", flush=True)
+            path.write_text(json.dumps(done, indent=1))
     for name in ([] if args.report_only else args.meshes):
         for sigma in SIGMAS:
             for model in MODELS:

@@ -73,6 +73,7 @@ def _grid(method: str, **axes) -> list[Candidate]:
 
 CANDIDATES: tuple[Candidate, ...] = tuple(
     _grid("taubin", iterations=(1, 2, 5, 10, 20, 40))
+    + _grid("taubin", lam=(0.7,), mu=(-0.7,), iterations=(10, 20, 40, 80))   # pass band 0: strong smoothing
     + _grid("bilateral_normal", sigma_r=(0.2, 0.35, 0.6), sigma_s=(1.0, 2.0))
     + _grid("guided_normal", sigma_r=(0.15, 0.3, 0.45), sigma_s=(1.0, 2.0))
 )
