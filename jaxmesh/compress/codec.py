@@ -51,7 +51,7 @@ from ..mesh import Mesh
 from . import basis as _basis
 from . import connectivity as _conn
 from . import patches as _patches
-from .rangecoder import Model, RangeCoderError, RangeDecoder, RangeEncoder
+from .rangecoder import Model, RangeCoderError, RangeDecoder, RangeEncoder, max_decisions
 
 __all__ = ["MAGIC", "FORMAT_VERSION", "CodecError", "Compressed", "auto_patch_size", "compress", "decompress",
            "inspect"]
@@ -319,6 +319,16 @@ def _parse(data: bytes):
     _, _, flags, n, nf, parts, bits, keep, step = fields[:9]
     if flags & ~(_FALLBACK | _UMBRELLA | _ORDER):
         raise CodecError(f"unknown flags {flags:#x}")
+    if not 1 <= bits <= 30:
+        raise CodecError(f"invalid quantization bits {bits} (corrupt header)")
+    if not (np.isfinite(step) and step > 0):
+        raise CodecError(f"invalid quantization step {step!r} (corrupt header)")
+    if not 0 < keep <= 1:
+        raise CodecError(f"invalid kept fraction {keep!r} (corrupt header)")
+    if not np.isfinite(fields[9:12]).all():
+        raise CodecError("non-finite reconstruction check (corrupt header)")
+    if n < 3 or nf < 1:
+        raise CodecError(f"invalid counts: {n} vertices, {nf} faces (corrupt header)")
     sections, pos = [], _HEAD.size
     for ln in lengths:
         sections.append(data[pos:pos + ln])
@@ -351,7 +361,10 @@ def decompress(data: bytes, *, dense_max: int = 1200) -> Mesh:
     n, parts = h["n"], h["parts"]
     kind = "umbrella" if h["flags"] & _UMBRELLA else "laplacian"
     try:
-        faces = _conn.decode_connectivity(conn, bool(h["flags"] & _FALLBACK))
+        if n > max_decisions(len(conn)) and n > len(conn) * _conn.MAX_LZMA_RATIO // 12:
+            raise CodecError(f"the header claims {n} vertices, more than the {len(conn)}-byte "
+                             "connectivity section can describe (corrupt file)")
+        faces = _conn.decode_connectivity(conn, bool(h["flags"] & _FALLBACK), n)
         if len(faces) != h["nf"] or (faces.size and faces.max() + 1 != n):
             raise CodecError("connectivity does not match the header's counts (corrupt file)")
         adjacency = _basis.adjacency_from_faces(faces, n)
@@ -359,23 +372,37 @@ def decompress(data: bytes, *, dense_max: int = 1200) -> Mesh:
             raise CodecError("invalid patch count (corrupt file)")
         labels = (_patches.decode_labels(lab_data, adjacency, parts) if parts > 1
                   else np.zeros(n, np.int64))
+        if parts > max_decisions(len(rank_data)):
+            raise CodecError(f"{parts} patches cannot be described by a {len(rank_data)}-byte rank section")
         ranks = _decode_ranks(rank_data, parts)
+        sizes = np.bincount(labels, minlength=parts)
+        if any(r > s for r, s in zip(ranks, sizes.tolist())):
+            raise CodecError("a patch rank exceeds its vertex count (corrupt file)")
+        if 3 * sum(ranks) > max_decisions(len(coef_data)):
+            raise CodecError(f"{sum(ranks)} coefficients per axis cannot be described by a "
+                             f"{len(coef_data)}-byte coefficient section (corrupt file)")
         blocks = _decode_coefficients(coef_data, ranks)
         bases = _patch_bases(adjacency, labels, ranks, kind, dense_max)
         vertices = _reconstruct(bases, blocks, h["step"], n)
         if h["flags"] & _ORDER:
-            perm = np.frombuffer(lzma.decompress(order_data), "<u4").astype(np.int64)
-            if len(perm) != n or not np.array_equal(np.sort(perm), np.arange(n)):
+            raw = _conn.lzma_exact(order_data, 4 * n, "vertex order section")
+            perm = np.frombuffer(raw, "<u4").astype(np.int64)
+            if not np.array_equal(np.sort(perm), np.arange(n)):
                 raise CodecError("stored vertex order is not a permutation (corrupt file)")
             inv = np.empty(n, np.int64)
             inv[perm] = np.arange(n)
             faces, vertices = perm[faces], vertices[inv]
-    except (_conn.ConnectivityError, RangeCoderError, lzma.LZMAError, ValueError) as err:
+    except (_conn.ConnectivityError, RangeCoderError, ValueError) as err:
         if isinstance(err, CodecError):
             raise
         raise CodecError(f"corrupt compressed mesh: {err}") from err
+    if not np.isfinite(vertices).all():
+        raise CodecError("the coefficients decode to non-finite coordinates (corrupt file)")
     tol = 1e-3 * h["step"] * np.sqrt(n) + 1e-9 * np.abs(vertices).max() * np.sqrt(n)
-    if np.abs(_check_sums(vertices) - h["check"]).max() > tol:
+    if not np.abs(_check_sums(vertices) - h["check"]).max() <= tol:
         raise CodecError("reconstruction check failed: this machine did not reproduce the encoder's "
                          "spectral basis (different eigensolver results)")
-    return Mesh.from_arrays(vertices, faces, warn=False)
+    try:
+        return Mesh.from_arrays(vertices, faces, warn=False)
+    except ValueError as err:
+        raise CodecError(f"the decoded mesh is invalid (corrupt file): {err}") from err

@@ -45,7 +45,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .rangecoder import Model, RangeCoderError, RangeDecoder, RangeEncoder
+from .rangecoder import Model, RangeCoderError, RangeDecoder, RangeEncoder, max_decisions
 
 __all__ = [
     "ConnectivityCode",
@@ -412,6 +412,10 @@ def traversal_decode(data: bytes) -> np.ndarray:
     nf = int.from_bytes(data[8:12], "little")
     if components > nf or 3 * components > total:
         raise ConnectivityError("connectivity header is inconsistent")
+    cap = max_decisions(len(data) - 12)  # each vertex and each face costs a decision or more
+    if total > cap or nf > cap:
+        raise ConnectivityError(f"connectivity header claims {total} vertices and {nf} faces, more than "
+                                f"its {len(data) - 12} coded bytes can hold (corrupt)")
     dec = RangeDecoder(data[12:])
     mdl = _Models()
     fan = [0] * total
@@ -550,6 +554,29 @@ def traversal_decode(data: bytes) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------- fallback
+#: lzma's largest compression ratio is about 7 000 : 1 (a run of zeros: 6 814 at
+#: 100 MB); a payload that claims to inflate beyond this many bytes per byte is refused
+#: before any decompression.
+MAX_LZMA_RATIO = 16_384
+
+
+def lzma_exact(payload: bytes, size: int, what: str) -> bytes:
+    """Decompress one lzma stream that must inflate to exactly ``size`` bytes,
+    never producing more than ``size + 1`` bytes (a bounded decompression: a
+    corrupt or hostile stream cannot claim memory the header did not announce)."""
+    if size > MAX_LZMA_RATIO * len(payload) + 4096:
+        raise ConnectivityError(f"{what}: {len(payload)} compressed bytes cannot hold the announced "
+                                f"{size} bytes (corrupt)")
+    dec = lzma.LZMADecompressor()
+    try:
+        raw = dec.decompress(payload, max_length=size + 1)
+    except lzma.LZMAError as err:
+        raise ConnectivityError(f"{what} is corrupt ({err})") from err
+    if len(raw) != size or not dec.eof or dec.unused_data:
+        raise ConnectivityError(f"{what} does not inflate to the announced {size} bytes (corrupt)")
+    return raw
+
+
 def _zigzag(x: np.ndarray) -> np.ndarray:
     return ((x << 1) ^ (x >> 63)).astype(np.uint64)
 
@@ -572,12 +599,7 @@ def fallback_decode(data: bytes) -> tuple[np.ndarray, int]:
         raise ConnectivityError("fallback connectivity block too short")
     n = int.from_bytes(data[0:4], "little")
     nf = int.from_bytes(data[4:8], "little")
-    try:
-        raw = lzma.decompress(data[8:])
-    except lzma.LZMAError as err:
-        raise ConnectivityError(f"fallback connectivity block is corrupt ({err})") from err
-    if len(raw) != 24 * nf:
-        raise ConnectivityError("fallback connectivity block has the wrong length")
+    raw = lzma_exact(data[8:], 24 * nf, "fallback connectivity block")
     z = np.frombuffer(raw, "<u8")
     delta = (z >> np.uint64(1)).astype(np.int64) ^ -(z & np.uint64(1)).astype(np.int64)
     flat = np.cumsum(delta)
@@ -656,17 +678,30 @@ def _merge_copies(faces: np.ndarray, total: int, pairs: np.ndarray) -> tuple[np.
     return remap[target[faces]], keep
 
 
-def decode_connectivity(data: bytes, fallback: bool) -> np.ndarray:
-    """Faces from a block written by :func:`encode_connectivity`."""
+def decode_connectivity(data: bytes, fallback: bool, num_vertices: int | None = None) -> np.ndarray:
+    """Faces from a block written by :func:`encode_connectivity`.
+
+    ``num_vertices``, when known (the codec's header), bounds the counts the
+    block announces before anything is allocated."""
     try:
         if fallback:
-            return fallback_decode(data)[0]
+            faces, n = fallback_decode(data)
+            if num_vertices is not None and n != num_vertices:
+                raise ConnectivityError(f"fallback block is for {n} vertices, the header says {num_vertices}")
+            return faces
         if len(data) < 4:
             raise ConnectivityError("connectivity block too short")
         ncopy = int.from_bytes(data[0:4], "little")
         end = 4 + 8 * ncopy
         if len(data) < end:
             raise ConnectivityError("connectivity block too short for its vertex-copy list")
+        if num_vertices is not None and len(data) >= end + 12:
+            total = int.from_bytes(data[end + 4:end + 8], "little")
+            # decoded vertices: the real ones, one copy per extra fan, one dummy per boundary loop (≥ 3 vertices)
+            split = num_vertices + ncopy
+            if total < num_vertices or total > split + split // 3 + 1:
+                raise ConnectivityError(f"connectivity block announces {total} decoded vertices; the header "
+                                        f"says the mesh has {num_vertices} (corrupt)")
         pairs = np.frombuffer(data[4:end], "<u4").astype(np.int64).reshape(-1, 2)
         faces = traversal_decode(data[end:])
         if ncopy:

@@ -18,11 +18,23 @@ Pure Python: ~1 µs per decision, enough for a million decisions per second.
 
 from __future__ import annotations
 
-__all__ = ["Model", "RangeEncoder", "RangeDecoder", "RangeCoderError"]
+__all__ = ["Model", "RangeEncoder", "RangeDecoder", "RangeCoderError", "MAX_DECISIONS_PER_BYTE",
+           "max_decisions"]
 
 _TOP = 1 << 24
 _MASK32 = 0xFFFFFFFF
 _HALF = 1 << 15
+
+
+#: A decision costs at least −log2(65505/65536) ≈ 0.000683 bits, so one byte
+#: holds at most 8 / 0.000683 ≈ 11 713 of them: decoders bound every count they
+#: read by this before allocating or looping.
+MAX_DECISIONS_PER_BYTE = 11_714
+
+
+def max_decisions(nbytes: int) -> int:
+    """The most binary decisions ``nbytes`` of range-coded data can hold."""
+    return MAX_DECISIONS_PER_BYTE * max(int(nbytes), 0) + 64
 
 
 class RangeCoderError(ValueError):
