@@ -1,28 +1,34 @@
-"""Reading and writing meshes (OBJ, PLY, OFF, STL) through trimesh.
+"""Reading and writing meshes (OBJ, PLY, OFF, STL).
 
-* Vertex order is kept exactly: files are read with ``process=False`` and
-  ``maintain_order=True`` (no merging, no reordering, no dropped vertices).
+* OBJ, OFF and STL are read and written by jaxmesh's own strict parsers
+  (:mod:`jaxmesh._meshtext`); PLY is read through trimesh.
+* Vertex order is kept exactly (no merging, no reordering, no dropped vertices).
   ``merge_duplicates=True`` merges exactly coincident vertices, keeping the
   first occurrence's position in the order.  STL stores no shared vertices, so
   for STL the default is to merge.
 * Polygons are fan-triangulated by trimesh; jaxmesh notices (the file declares
   fewer faces than it yields) and warns, or refuses with ``triangulate=False``.
 * Unreadable, truncated or empty files raise :class:`MeshFileError` naming the
-  file and the problem.
+  file, the line and the problem; a text file whose last line has no line end
+  is taken for a truncated one.
+* Text formats are written with ``%.17g`` (every float64 round-trips exactly);
+  binary PLY stores doubles; STL stores float32, as its format defines.
 * :func:`save` writes to a temporary file beside the target and moves it into
   place atomically; it never replaces an existing file unless ``overwrite=True``.
 """
 
 from __future__ import annotations
 
+import contextlib
+import glob
 import os
-import re
 import tempfile
 import warnings
 from pathlib import Path
 
 import numpy as np
 
+from . import _meshtext as _text
 from .mesh import Mesh, MeshWarning
 
 __all__ = ["load", "save", "MeshFileError", "SUPPORTED_FORMATS", "merge_duplicate_vertices"]
@@ -43,37 +49,27 @@ def _format_of(path: Path, file_type: str | None) -> str:
     return ext
 
 
-def _declared_faces(path: Path, fmt: str) -> tuple[int | None, int | None]:
-    """(faces declared by the file, of which non-triangles) when cheaply known."""
+def _read_ply(p: Path):
+    """(vertices, faces, faces declared by the header, None) through trimesh, after
+    checking the header's counts against the file's size."""
+    import trimesh
+
     try:
-        if fmt == "ply":
-            with open(path, "rb") as fh:
-                head = fh.read(65536).split(b"end_header")[0].decode("ascii", "replace")
-            m = re.search(r"element\s+face\s+(\d+)", head)
-            return (int(m.group(1)), None) if m else (None, None)
-        if fmt == "off":
-            with open(path, "r", errors="replace") as fh:
-                lines = [ln.split("#")[0].strip() for ln in fh]
-            lines = [ln for ln in lines if ln]
-            first = lines[0]
-            rest = first[3:].split() if first.upper().startswith("OFF") else None
-            counts = rest if rest else lines[1].split()
-            nv, nf = int(counts[0]), int(counts[1])
-            start = 1 if rest else 2
-            face_lines = lines[start + nv: start + nv + nf]
-            polys = sum(1 for ln in face_lines if ln.split()[0] != "3")
-            return nf, polys
-        if fmt == "obj":
-            nf = polys = 0
-            with open(path, "r", errors="replace") as fh:
-                for ln in fh:
-                    if ln.startswith("f "):
-                        nf += 1
-                        polys += len(ln.split()) != 4
-            return nf, polys
-    except (OSError, ValueError, IndexError):
-        return None, None
-    return None, None
+        counts = _text.check_ply_header(p.read_bytes())
+    except OSError as err:
+        raise MeshFileError(f"{p}: cannot read ({err.strerror or err})") from err
+    except ValueError as err:
+        raise MeshFileError(f"{p}: cannot read as PLY: {err}") from err
+    try:
+        tm = trimesh.load(p, file_type="ply", process=False, maintain_order=True, force="mesh",
+                          skip_materials=True)
+    except Exception as err:  # trimesh raises many types for bad files
+        raise MeshFileError(f"{p}: cannot read as PLY ({type(err).__name__}: {err})") from err
+    vertices = np.asarray(getattr(tm, "vertices", np.zeros((0, 3))), np.float64)
+    faces = np.asarray(getattr(tm, "faces", np.zeros((0, 3), int)), np.int64)
+    if "vertex" in counts and len(vertices) != counts["vertex"]:
+        raise MeshFileError(f"{p}: the header declares {counts['vertex']} vertices, {len(vertices)} were read")
+    return vertices, faces, counts.get("face"), None
 
 
 def merge_duplicate_vertices(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -113,26 +109,28 @@ def load(
     ``file_type`` overrides the suffix; ``dtype`` is passed to
     :meth:`Mesh.from_arrays`.
     """
-    import trimesh
-
     p = Path(path)
     fmt = _format_of(p, file_type)
+    if p.is_dir():
+        raise MeshFileError(f"{p}: is a directory, not a mesh file")
     if not p.is_file():
         raise MeshFileError(f"{p}: no such file")
     if p.stat().st_size == 0:
         raise MeshFileError(f"{p}: empty file")
-    try:
-        tm = trimesh.load(
-            p, file_type=fmt, process=False, maintain_order=True, force="mesh",
-            skip_materials=True,
-        )
-    except Exception as err:  # trimesh raises many types for bad files
-        raise MeshFileError(f"{p}: cannot read as {fmt.upper()} ({type(err).__name__}: {err})") from err
-    vertices = np.asarray(getattr(tm, "vertices", np.zeros((0, 3))))
-    faces = np.asarray(getattr(tm, "faces", np.zeros((0, 3), int)))
+    if fmt == "ply":
+        vertices, faces, declared, polys = _read_ply(p)
+    else:
+        try:
+            data = p.read_bytes()
+        except OSError as err:
+            raise MeshFileError(f"{p}: cannot read ({err.strerror or err})") from err
+        reader = {"obj": _text.read_obj, "off": _text.read_off, "stl": _text.read_stl}[fmt]
+        try:
+            vertices, faces, declared, polys = reader(data)
+        except (ValueError, UnicodeError) as err:
+            raise MeshFileError(f"{p}: cannot read as {fmt.upper()}: {err}") from err
     if len(vertices) == 0 or len(faces) == 0:
         raise MeshFileError(f"{p}: no triangles could be read (empty or unrecognised {fmt.upper()})")
-    declared, polys = _declared_faces(p, fmt)
     if declared is not None and (declared != len(faces) or polys):
         n_poly = polys if polys else "some"
         msg = (f"{p}: {n_poly} of {declared} faces are polygons; "
@@ -167,19 +165,65 @@ def _binary_ply(vertices: np.ndarray, faces: np.ndarray) -> bytes:
     return header + np.ascontiguousarray(vertices, dtype="<f8").tobytes() + face_rec.tobytes()
 
 
+#: temporary files being written now (removed by the CLI's interrupt handler)
+IN_PROGRESS: set[str] = set()
+
+
+def _umask() -> int:
+    try:
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except OSError:
+        pass
+    mask = os.umask(0o022)  # elsewhere: read it by setting it (not thread-safe, only at a write)
+    os.umask(mask)
+    return mask
+
+
+def _remove_stale_temporaries(parent: Path, name: str) -> None:
+    """Remove ``.NAME.PID.*.tmp`` files left beside the target by a writer that
+    was killed (kill -9, power loss): those whose process no longer exists."""
+    for tmp in parent.glob(f".{glob.escape(name)}.*.tmp"):
+        parts = tmp.name[len(name) + 2:].split(".")
+        if not parts or not parts[0].isdigit():
+            continue
+        pid = int(parts[0])
+        if pid == os.getpid():
+            continue
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            with contextlib.suppress(OSError):
+                tmp.unlink()
+        except OSError:  # exists but not ours (EPERM): leave it
+            pass
+
+
 def write_bytes_atomic(path: str | os.PathLike, data: bytes, *, overwrite: bool = False) -> Path:
     """Write ``data`` to ``path`` through a temporary file in the same directory,
     fsynced and moved into place atomically; an existing file is an error
-    (``FileExistsError``) unless ``overwrite``, also if it appears meanwhile."""
+    (``FileExistsError``) unless ``overwrite``, also if it appears meanwhile.
+
+    The file gets the permissions the user's umask gives a new file (0666 & ~umask,
+    as ``open`` would), not ``mkstemp``'s 0600.  The temporary file is named
+    ``.NAME.PID.XXXX.tmp``; ones left by a killed writer are removed by the next
+    write of the same target."""
     p = Path(path)
     parent = p.parent if str(p.parent) else Path(".")
+    if p.is_dir():
+        raise MeshFileError(f"{p}: is a directory; refusing to replace it with a file")
     if not parent.is_dir():
         raise MeshFileError(f"{p}: directory {parent} does not exist")
     if p.exists() and not overwrite:
         raise FileExistsError(f"{p} exists; pass overwrite=True (CLI: --force) to replace it")
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=parent)
+    _remove_stale_temporaries(parent, p.name)
+    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.{os.getpid()}.", suffix=".tmp", dir=parent)
+    IN_PROGRESS.add(tmp)
     try:
         with os.fdopen(fd, "wb") as fh:
+            os.fchmod(fh.fileno(), 0o666 & ~_umask())
             fh.write(data)
             fh.flush()
             os.fsync(fh.fileno())
@@ -197,6 +241,7 @@ def write_bytes_atomic(path: str | os.PathLike, data: bytes, *, overwrite: bool 
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)
+        IN_PROGRESS.discard(tmp)
     return p
 
 
@@ -211,6 +256,8 @@ def save(mesh: Mesh, path: str | os.PathLike, *, overwrite: bool = False, file_t
     fmt = _format_of(p, file_type)
     if mesh.batch_shape:
         raise ValueError(f"save needs a single mesh, got batch shape {mesh.batch_shape}")
+    if p.is_dir():
+        raise MeshFileError(f"{p}: is a directory; refusing to replace it with a file")
     if p.exists() and not overwrite:
         raise FileExistsError(f"{p} exists; pass overwrite=True (CLI: --force) to replace it")
     parent = p.parent if str(p.parent) else Path(".")
@@ -219,14 +266,13 @@ def save(mesh: Mesh, path: str | os.PathLike, *, overwrite: bool = False, file_t
     vertices = np.asarray(mesh.vertices, dtype=np.float64)
     if not np.isfinite(vertices).all():
         raise ValueError("refusing to save a mesh with non-finite vertex coordinates")
+    faces = np.asarray(mesh.faces, dtype=np.int64)
     if fmt == "ply":
-        data = _binary_ply(vertices, np.asarray(mesh.faces))
-    elif fmt == "obj":
-        data = mesh.to_trimesh().export(file_type="obj", include_normals=False,
-                                        include_texture=False, digits=17)
+        data = _binary_ply(vertices, faces)
     else:
-        data = mesh.to_trimesh().export(file_type=fmt)
-    if isinstance(data, str):
-        data = data.encode()
+        try:
+            data = {"obj": _text.write_obj, "off": _text.write_off, "stl": _text.write_stl}[fmt](vertices, faces)
+        except ValueError as err:
+            raise MeshFileError(f"{p}: {err}") from err
     write_bytes_atomic(p, data, overwrite=overwrite)
     return p

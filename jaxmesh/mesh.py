@@ -14,6 +14,7 @@ import dataclasses
 import warnings
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float, Int
@@ -207,6 +208,12 @@ class Mesh(eqx.Module):
                     MeshWarning,
                     stacklevel=2,
                 )
+        target = jax.dtypes.canonicalize_dtype(dtype if dtype is not None else v.dtype)
+        if jnp.issubdtype(target, jnp.floating) and v.size and np.abs(v).max() > jnp.finfo(target).max:
+            i = int(np.argmax(np.abs(v).max(axis=1)))
+            raise ValueError(
+                f"vertex {i} {v[i].tolist()} does not fit in {target} (largest {float(jnp.finfo(target).max):.3g}); "
+                "enable 64-bit floats (jax.config.update('jax_enable_x64', True)) or rescale the mesh")
         vj = jnp.asarray(v, dtype=dtype)
         return cls(vertices=vj, faces=jnp.asarray(f), **{k: jnp.asarray(a) for k, a in topo.items()})
 

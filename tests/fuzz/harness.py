@@ -25,7 +25,6 @@ import argparse
 import collections
 import importlib
 import json
-import os
 import resource
 import select
 import signal
@@ -107,6 +106,8 @@ def run(suite: str, indices, *, mem_mb: int = 200, timeout_s: float = 20.0, grac
             if line:
                 results.append(json.loads(line))
                 first = False
+                if results[-1]["outcome"] == "hang":
+                    break  # the alarm may leave a thread or a C call running: start a fresh worker
                 continue
             outcome = "hang" if proc.poll() is None else "crash"
             results.append({"i": i, "label": f"case {i}", "outcome": outcome,
@@ -114,6 +115,11 @@ def run(suite: str, indices, *, mem_mb: int = 200, timeout_s: float = 20.0, grac
             break
         proc.kill()
         proc.wait()
+        for pipe in (proc.stdin, proc.stdout):
+            try:
+                pipe.close()
+            except OSError:  # a dead worker's stdin
+                pass
     return results
 
 
