@@ -11,9 +11,12 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import math
 from typing import Any, Callable
 
+import jax
 import jax.numpy as jnp
+import numpy as np
 
 from ..geometry import bounding_box_diagonal
 from ..mesh import Mesh
@@ -37,7 +40,13 @@ class Param:
     """A method parameter: ``kind`` is "continuous" (tunable; ``bounds`` is the
     search range, ``log`` whether to search it on a log scale), "int",
     "choice", or "aux" (auxiliary data such as precomputed topology, made on
-    the host by ``build(mesh)``; see :meth:`Method.prepare`)."""
+    the host by ``build(mesh)``; see :meth:`Method.prepare`).
+
+    ``domain`` is where a continuous value is valid at all (``bounds`` is only
+    where tuning searches): ``(lo, hi)`` with ``closed`` saying which ends are
+    included ("()", "[)", "(]", "[]").  Concrete values outside it, NaN and ±inf
+    are refused by :meth:`Method.resolve`; traced values (inside the tuner's
+    ``jit``) are not checked."""
 
     default: Any
     kind: str
@@ -46,6 +55,24 @@ class Param:
     log: bool = False
     choices: tuple[str, ...] = ()
     build: Callable[[Mesh], Any] | None = None
+    domain: tuple[float, float] = (0.0, math.inf)
+    closed: str = "()"
+
+    def check(self, name: str, value) -> None:
+        """Raise ``ValueError`` naming ``name`` if a concrete ``value`` is outside the domain."""
+        if self.kind != "continuous" or isinstance(value, jax.core.Tracer):
+            return
+        try:
+            a = np.asarray(value, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ValueError(f"{name} must be a number, got {value!r}") from None
+        lo, hi = self.domain
+        ok = np.isfinite(a) & ((a >= lo) if self.closed[0] == "[" else (a > lo)) \
+            & ((a <= hi) if self.closed[1] == "]" else (a < hi))
+        if not ok.all():
+            bad = a.reshape(-1)[~ok.reshape(-1)][0]
+            raise ValueError(f"{name} must be a finite number in {self.closed[0]}{lo:g}, {hi:g}{self.closed[1]}, "
+                             f"got {bad:g}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -58,6 +85,7 @@ class Method:
     params: dict[str, Param]
     summary: str
     reference: str
+    constraint: Callable[[dict], str | None] | None = None
 
     def defaults(self) -> dict[str, Any]:
         return {k: p.default for k, p in self.params.items()}
@@ -88,16 +116,35 @@ class Method:
             if p.kind == "int" and (isinstance(full[k], bool) or not isinstance(full[k], int)
                                     or full[k] < 0):
                 raise ValueError(f"{self.name}: {k} must be a non-negative int, got {full[k]!r}")
+            p.check(f"{self.name}: {k}", full[k])
+        problem = self.constraint(full) if self.constraint else None
+        if problem:
+            raise ValueError(f"{self.name}: {problem}")
         return full
 
     def __call__(self, mesh: Mesh, **params) -> Mesh:
-        return self.function(mesh, **self.resolve(**params))
+        out = self.function(mesh, **self.resolve(**params))
+        if not isinstance(out.vertices, jax.core.Tracer) and not bool(jnp.isfinite(out.vertices).all()):
+            raise FloatingPointError(
+                f"{self.name} produced non-finite coordinates with {params or 'its defaults'} "
+                f"({out.vertices.dtype}); the input was finite, so a parameter is outside the range "
+                "this precision supports (try float64 or a smaller step)")
+        return out
 
 
 _BOUNDARY = Param("free", "choice", "boundary vertices: 'free' (all neighbours) or 'curve' (along the boundary)",
                   choices=BOUNDARY_MODES)
 _GRAPH = Param(None, "aux", "face_graph(mesh), built on the host; pass it to call the method under jit",
                build=face_graph)
+
+
+def _taubin_pass_band(p: dict) -> str | None:
+    lam, mu = p["lam"], p["mu"]
+    if isinstance(lam, jax.core.Tracer) or isinstance(mu, jax.core.Tracer):
+        return None
+    if np.any(np.asarray(mu, np.float64) > -np.asarray(lam, np.float64)):
+        return f"μ must satisfy μ ≤ -λ (a low-pass filter), got λ = {lam}, μ = {mu}"
+    return None
 
 
 def _it(default: int, what: str = "number of iterations") -> Param:
@@ -110,7 +157,7 @@ def _normal_filter_params(normal_iterations: int) -> dict[str, Param]:
         "sigma_s": Param(1.0, "continuous", "spatial σ_s, in mean centroid spacings", (0.3, 4.0), True),
         "sigma_r": Param(0.35, "continuous", "range σ_r between (guidance) unit normals", (0.05, 1.5), True),
         "tangential": Param(0.1, "continuous", "tangential relaxation per vertex update (0: Sun et al.)",
-                            (0.0, 0.5)),
+                            (0.0, 0.5), domain=(0.0, 1.0), closed="[]"),
         "normal_iterations": _it(normal_iterations, "normal filter passes per round"),
         "vertex_iterations": _it(20, "vertex updates per round"),
         "iterations": _it(1, "outer rounds"),
@@ -122,7 +169,8 @@ METHODS: dict[str, Method] = {
     m.name: m
     for m in [
         Method("kernel", kernel_diffusion, {
-            "lam": Param(0.4, "continuous", "regularisation λ of H_i (squared length)", (0.05, 20.0), True),
+            "lam": Param(0.4, "continuous", "regularisation λ of H_i (squared length)", (0.05, 20.0), True,
+                         domain=(0.0, 1e6), closed="(]"),
             "iterations": _it(5),
             "variant": Param("random_walk", "choice", "update rule", choices=("random_walk", "paper")),
             "safeguard": Param(True, "choice", "cap the random-walk step (never diverges)",
@@ -135,19 +183,23 @@ METHODS: dict[str, Method] = {
             "variant": Param("random_walk", "choice", "update rule", choices=("random_walk", "paper")),
         }, "vertex-based anisotropic diffusion, Cauchy weight", "Zhang & Ben Hamza 2006"),
         Method("laplacian", laplacian_smoothing, {
-            "lam": Param(0.5, "continuous", "umbrella step", (0.01, 1.0), True),
+            "lam": Param(0.5, "continuous", "umbrella step", (0.01, 1.0), True, domain=(0.0, 1.0), closed="(]"),
             "iterations": _it(10),
             "boundary": _BOUNDARY,
         }, "Laplacian (umbrella) flow", "Taubin 1995"),
         Method("taubin", taubin_smoothing, {
-            "lam": Param(0.5, "continuous", "shrinking step λ > 0", (0.01, 1.0), True),
-            "mu": Param(-0.53, "continuous", "inflating step μ < -λ", (-1.0, -0.01)),
+            "lam": Param(0.5, "continuous", "shrinking step λ ∈ (0, 1]", (0.01, 1.0), True, domain=(0.0, 1.0),
+                         closed="(]"),
+            "mu": Param(-0.53, "continuous", "inflating step μ ∈ [-1, 0), μ ≤ -λ", (-1.0, -0.01),
+                        domain=(-1.0, 0.0), closed="[)"),
             "iterations": _it(10),
             "boundary": _BOUNDARY,
-        }, "Taubin λ|μ low-pass filter", "Taubin 1995"),
+        }, "Taubin λ|μ low-pass filter", "Taubin 1995", _taubin_pass_band),
         Method("hc", hc_smoothing, {
-            "alpha": Param(0.1, "continuous", "pull towards the original positions", (0.0, 1.0)),
-            "beta": Param(0.5, "continuous", "pull towards the previous positions", (0.0, 1.0)),
+            "alpha": Param(0.1, "continuous", "pull towards the original positions", (0.0, 1.0),
+                           domain=(0.0, 1.0), closed="[]"),
+            "beta": Param(0.5, "continuous", "pull towards the previous positions", (0.0, 1.0),
+                          domain=(0.0, 1.0), closed="[]"),
             "iterations": _it(10),
             "boundary": _BOUNDARY,
         }, "HC Laplacian (extra baseline, not in the thesis)", "Vollmer, Mencl & Müller 1999"),

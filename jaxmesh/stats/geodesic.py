@@ -44,6 +44,11 @@ def _graph(mesh: Mesh, graph: str, k: int) -> sp.csr_matrix:
         return jsparse.edge_length_matrix(mesh)
     v = np.asarray(mesh.vertices, np.float64)
     if graph == "knn":
+        if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
+            raise ValueError(f"knn must be a positive int, got {k!r}")
+        k = int(min(k, len(v) - 1))  # a small mesh: every other vertex
+        if k < 1:
+            return sp.csr_matrix((len(v), len(v)))
         dist, idx = cKDTree(v).query(v, k=k + 1)
         rows = np.repeat(np.arange(len(v)), k)
         w = sp.csr_matrix((dist[:, 1:].ravel(), (rows, idx[:, 1:].ravel())), shape=(len(v), len(v)))
@@ -53,7 +58,7 @@ def _graph(mesh: Mesh, graph: str, k: int) -> sp.csr_matrix:
 
 def graph_distances(mesh: Mesh, sources, graph: str = "edges", k: int = 8) -> np.ndarray:
     """Shortest-path lengths (S, V) from ``sources`` on the edge graph or the
-    kNN graph (``k`` neighbours); inf where unreachable."""
+    kNN graph (``k`` ≥ 1 neighbours, at most V − 1); inf where unreachable."""
     single(mesh)
     return csgraph.dijkstra(_graph(mesh, graph, k), directed=False, indices=np.asarray(sources))
 
@@ -84,10 +89,11 @@ def _solve(lu, b: np.ndarray, block: int = 25) -> np.ndarray:
                            for i in range(0, b.shape[1], block)], axis=1)
 
 
-def heat_geodesics(mesh: Mesh, sources, t: float | None = None) -> np.ndarray:
+def heat_geodesics(mesh: Mesh, sources, t: float | None = None, block: int = 25) -> np.ndarray:
     """Heat-method distances (S, V) from ``sources`` (module docstring); ``t``
     defaults to ℓ̄².  Vertices unreachable from a source (another component)
-    get inf."""
+    get inf.  Sources are processed ``block`` at a time (the per-face gradients
+    of a block are F × 3 × block numbers)."""
     single(mesh)
     sources = np.atleast_1d(np.asarray(sources))
     v, f = np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces)
@@ -106,6 +112,17 @@ def heat_geodesics(mesh: Mesh, sources, t: float | None = None) -> np.ndarray:
     heat = _spd_factor(sp.diags(mass) - t * (w - sp.diags(np.asarray(w.sum(axis=1)).ravel())))
     # K = -L_c is singular on each component (constants): a tiny mass shift makes it definite
     poisson = _spd_factor(-lc + sp.diags(1e-12 * mass / ell ** 2))
+    phi = np.empty((len(sources), n))
+    for lo in range(0, len(sources), block):  # blocks of sources: memory O(F · block), not O(F · S)
+        src = sources[lo:lo + block]
+        phi[lo:lo + len(src)] = _heat_distances(heat, poisson, f, area, grad, src).T
+    reach = graph_distances(mesh, sources, "edges") < np.inf
+    return np.where(reach, phi, np.inf)
+
+
+def _heat_distances(heat, poisson, f, area, grad, sources) -> np.ndarray:
+    """(V, S) heat-method distances for a few sources, given the two factorizations."""
+    n = heat.shape[0]
     rhs = np.zeros((n, len(sources)), order="F")
     rhs[sources, np.arange(len(sources))] = 1.0
     u = _solve(heat, rhs)                                                 # (V, S)
@@ -116,9 +133,7 @@ def heat_geodesics(mesh: Mesh, sources, t: float | None = None) -> np.ndarray:
     contrib = area[:, None, None] * np.einsum("fkd,fds->fks", grad, x)    # A_f X_f · ∇ψ_k
     np.add.at(b, f.ravel(), contrib.reshape(-1, len(sources)))
     phi = _solve(poisson, b)
-    phi = phi - phi[sources, np.arange(len(sources))][None, :]
-    reach = graph_distances(mesh, sources, "edges") < np.inf
-    return np.where(reach, phi.T, np.inf)
+    return phi - phi[sources, np.arange(len(sources))][None, :]
 
 
 def geodesic_distances(mesh: Mesh, sources, method: str = "heat", k: int = 8) -> np.ndarray:

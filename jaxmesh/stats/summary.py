@@ -4,6 +4,8 @@ clustering, geodesic distances)."""
 
 from __future__ import annotations
 
+from typing import Callable
+
 import numpy as np
 
 from ..mesh import Mesh
@@ -23,10 +25,17 @@ def _finite(d: np.ndarray, sources: np.ndarray) -> np.ndarray:
 
 
 def mesh_statistics(mesh: Mesh, sources: int = 200, seed: int = 0, knn: int = 8,
-                    spectrum_k: int | None = None, geodesics: tuple[str, ...] = ("edges", "knn", "heat")) -> dict:
+                    spectrum_k: int | None = None, geodesics: tuple[str, ...] = ("edges", "knn", "heat"),
+                    progress: Callable[[str], None] | None = None) -> dict:
     """All ch.5 statistics of ``mesh``: a dict of scalars (``summary``) and
     arrays (degree distribution, K_nn(k), C(k) both ways, spectra, geodesic
-    distances from ``sources`` seeded vertices by each method in ``geodesics``)."""
+    distances from ``sources`` seeded vertices by each method in ``geodesics``).
+    ``progress(stage)`` is called before each stage (the CLI prints it)."""
+    say = progress or (lambda stage: None)
+    for name, value in (("sources", sources), ("knn", knn)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+            raise ValueError(f"{name} must be a positive int, got {value!r}")
+    say("degree, assortativity and clustering")
     ks, pk = degree_distribution(mesh)
     knn_v = neighbor_connectivity(mesh)
     kk, knn_k = assortativity_function(mesh, knn_v)
@@ -37,8 +46,10 @@ def mesh_statistics(mesh: Mesh, sources: int = 200, seed: int = 0, knn: int = 8,
     src = sample_sources(mesh, sources, seed)
     dist = {}
     for g in geodesics:
+        say(f"{g} geodesics from {len(src)} sources")
         d = heat_geodesics(mesh, src) if g == "heat" else graph_distances(mesh, src, g, knn)
         dist[g] = _finite(d, src)
+    say("Laplacian spectra")
     spec = {kind: laplacian_spectrum(mesh, kind, spectrum_k) for kind in ("combinatorial", "normalized")}
     d = np.asarray(mesh.degree)
     connected = d > 0
