@@ -20,25 +20,9 @@ from typing import Callable
 __all__ = ["main", "COMMANDS"]
 
 
-from .cli_denoise import DEMO, DENOISE, NOISE, CLIError
+from .cli_denoise import DEMO, DENOISE, NOISE, CLIError, _mesh_source
 from .cli_compress import COMPRESS, DECOMPRESS
 from .cli_hash import HASH
-
-
-def _mesh_source(args) -> list[tuple[str, Callable]]:
-    """(label, loader) for each mesh named by MESH arguments or --sample."""
-    from . import data
-    from .io import load
-
-    out = []
-    for name in args.sample or []:
-        out.append((f"sample:{name}", lambda name=name: data.load_sample(name)))
-    for path in args.mesh or []:
-        out.append((path, lambda path=path: load(path)))
-    if not out:
-        raise CLIError("no mesh given: name a MESH file or --sample NAME "
-                       f"(samples: {', '.join(sorted(data.SAMPLES))})")
-    return out
 
 
 # ---------------------------------------------------------------- info
@@ -125,6 +109,13 @@ def _configure_stats(p: argparse.ArgumentParser) -> None:
     p.add_argument("--knn", type=int, default=8, help="neighbours of the kNN graph (default 8)")
 
 
+def _stage(label: str):
+    """Progress lines on stderr for a terminal (long statistics), silent otherwise."""
+    if not sys.stderr.isatty():
+        return None
+    return lambda stage: print(f"jaxmesh: {label}: {stage}...", file=sys.stderr, flush=True)
+
+
 def _run_stats(args) -> int:
     import jax
 
@@ -141,7 +132,7 @@ def _run_stats(args) -> int:
         raise CLIError(f"--sources must be >= 1, got {args.sources}")
     for i, (label, loader) in enumerate(sources):
         mesh = loader()
-        st = mesh_statistics(mesh, sources=args.sources, seed=args.seed, knn=args.knn)
+        st = mesh_statistics(mesh, sources=args.sources, seed=args.seed, knn=args.knn, progress=_stage(label))
         _print_record({"path": label, **st["summary"]}, args.json, i == 0)
         if args.plot:
             import io
@@ -192,6 +183,51 @@ def _show_warning(message, category, filename, lineno, file=None, line=None):
     print(f"jaxmesh: warning: {message}", file=sys.stderr)
 
 
+def _os_error(err: OSError) -> str:
+    where = err.filename if err.filename is not None else ""
+    reason = err.strerror or type(err).__name__
+    return f"{where}: {reason}" if where else reason
+
+
+def _in_worker(run, args):
+    """Run the command in a worker thread and wait for it from the main thread, so
+    that Ctrl-C is seen within a fraction of a second even while XLA compiles or
+    runs a long loop (the main thread would otherwise be blocked in C++ and
+    Python would only see the signal when the call returns).  On Ctrl-C the
+    temporary files being written are removed and the process exits with 130
+    without waiting for the worker."""
+    import threading
+
+    from .io import IN_PROGRESS
+
+    box: dict = {}
+
+    def work():
+        try:
+            box["value"] = run(args)
+        except BaseException as err:  # re-raised in the main thread
+            box["error"] = err
+
+    thread = threading.Thread(target=work, name="jaxmesh-command", daemon=True)
+    thread.start()
+    try:
+        while thread.is_alive():
+            thread.join(0.1)
+    except KeyboardInterrupt:
+        for tmp in list(IN_PROGRESS):
+            try:
+                os.unlink(tmp)
+            except OSError:
+                pass
+        print("jaxmesh: interrupted; nothing was written", file=sys.stderr)
+        sys.stderr.flush()
+        sys.stdout.flush()
+        os._exit(130)
+    if "error" in box:
+        raise box["error"]
+    return box.get("value")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -202,14 +238,21 @@ def main(argv: list[str] | None = None) -> int:
 
     warnings.showwarning = _show_warning
     try:
-        return int(args._run(args) or 0)
-    except (CLIError, MeshFileError, FileExistsError, ValueError) as err:
+        return int(_in_worker(args._run, args) or 0)
+    except (CLIError, MeshFileError, FileExistsError, ValueError, FloatingPointError) as err:
         print(f"jaxmesh: error: {err}", file=sys.stderr)
         return 1
     except BrokenPipeError:  # e.g. `jaxmesh info --json a b | head -1`
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         return 0
+    except OSError as err:  # permissions, a full disk, a directory given as a file, ...
+        print(f"jaxmesh: error: {_os_error(err)}", file=sys.stderr)
+        return 1
+    except MemoryError:
+        print("jaxmesh: error: out of memory (the input is too large for this machine, or corrupt)",
+              file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print("jaxmesh: interrupted", file=sys.stderr)
         return 130

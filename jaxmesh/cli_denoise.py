@@ -7,11 +7,12 @@ import json
 import sys
 import time
 from pathlib import Path
+from typing import Callable
 
 __all__ = ["NOISE", "DENOISE", "DEMO"]
 
 
-class CLIError(Exception):
+class CLIError(ValueError):
     """Reported by :func:`jaxmesh.cli.main` as ``jaxmesh: error: ...`` (exit 1)."""
 
 
@@ -30,6 +31,22 @@ def _load_input(args):
     if not args.input:
         raise CLIError("no input mesh: name IN or use --sample NAME")
     return args.input, load(args.input)
+
+
+def _mesh_source(args) -> list[tuple[str, Callable]]:
+    """(label, loader) for each mesh named by MESH arguments or --sample."""
+    from . import data
+    from .io import load
+
+    out = []
+    for name in args.sample or []:
+        out.append((f"sample:{name}", lambda name=name: data.load_sample(name)))
+    for path in args.mesh or []:
+        out.append((path, lambda path=path: load(path)))
+    if not out:
+        raise CLIError("no mesh given: name a MESH file or --sample NAME "
+                       f"(samples: {', '.join(sorted(data.SAMPLES))})")
+    return out
 
 
 def _check_output(path: str, force: bool) -> None:
@@ -186,6 +203,21 @@ def _load_pair(args):
     return label, mesh, reference, out
 
 
+def _blind(fn, *args, **kwargs):
+    """(fn(...), caveats): every warning raised inside is printed as a
+    ``jaxmesh: warning:`` line; the blind-tuning caveats are also returned for the report."""
+    import warnings
+
+    from .tune import BlindTuningWarning
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        out = fn(*args, **kwargs)
+    for w in caught:
+        print(f"jaxmesh: warning: {w.message}", file=sys.stderr)
+    return out, [str(w.message) for w in caught if issubclass(w.category, BlindTuningWarning)]
+
+
 def _run_auto(args) -> int:
     """--method auto: jaxmesh.tune.choose_denoiser, then the same report as a named method."""
     from .io import save
@@ -199,17 +231,14 @@ def _run_auto(args) -> int:
         raise CLIError(f"--noise-sigma must be > 0, got {args.noise_sigma}")
     label, mesh, reference, out = _load_pair(args)
     start = time.perf_counter()
-    choice = choose_denoiser(mesh, sigma=args.noise_sigma)
+    choice, caveats = _blind(choose_denoiser, mesh, sigma=args.noise_sigma)
     seconds = time.perf_counter() - start
     save(choice.mesh, out, overwrite=args.force)
     summary = {"input": label, "output": out, "method": choice.method, "params": choice.params,
-               "seconds": round(seconds, 3), "auto": choice.summary()}
+               "seconds": round(seconds, 3), "auto": choice.summary(), "warnings": caveats}
     if reference is not None:
         summary["before"] = _errors(reference, mesh)
         summary["after"] = _errors(reference, choice.mesh)
-    if not choice.improved:
-        print("jaxmesh: warning: no candidate is estimated to improve on the input (the noise may be "
-              "overestimated, or the mesh already clean); wrote the least bad one", file=sys.stderr)
     if args.json:
         print(json.dumps(summary))
         return 0
@@ -233,9 +262,8 @@ def _run_denoise(args) -> int:
         return _list_methods()
     if args.method == "auto":
         return _run_auto(args)
-    from .denoise import METHODS, diverged
+    from .denoise import METHODS, denoise_in_unit_frame, diverged
     from .io import save
-    from .transforms import normalize
 
     if args.method not in METHODS:
         raise CLIError(f"unknown method {args.method!r}; choose auto or one of {', '.join(sorted(METHODS))}")
@@ -257,30 +285,28 @@ def _run_denoise(args) -> int:
         raise CLIError(f"--noise-sigma must be > 0, got {args.noise_sigma}")
     label, mesh, reference, out = _load_pair(args)
 
-    if args.raw_units:
-        work, transform = mesh, None
-    else:
-        work, centre, scale = normalize(mesh, return_transform=True)
-        transform = (centre, scale)
-    tuned = None
+    tuned, caveats = None, []
     if auto:
         from .tune import tune
 
         start = time.perf_counter()
         fixed = {k: v for k, v in params.items() if k not in auto and method.params[k].kind != "aux"}
-        tuned = tune(mesh, reference, args.method, names=auto, sigma=args.noise_sigma, **fixed)
+        tuned, caveats = _blind(tune, mesh, reference, args.method, names=auto, sigma=args.noise_sigma,
+                                **fixed)
         params.update({k: float(v) for k, v in tuned.params.items()})
-        seconds = time.perf_counter() - start
-        result = tuned.mesh
-        work = mesh
-    if tuned is None:
-        result, seconds = _run_method(args, method, params, work)
-    if bool(diverged(work, result)):
+    # the tuned values are re-run through the same call as given ones: --lam auto and
+    # --lam <the λ it reports> write the same file
+    run = (lambda: METHODS[args.method](mesh, **params)) if args.raw_units else \
+        (lambda: denoise_in_unit_frame(mesh, args.method, **params))
+    try:
+        result, seconds = _run_method(args, run, params)
+    except FloatingPointError as err:
+        raise CLIError(f"{err}; nothing written") from None
+    if args.raw_units and bool(diverged(mesh, result)):
         raise CLIError(f"{args.method} diverged (non-finite or exploding coordinates) with {params}; "
                        "nothing written. Use a larger --lam, fewer --iterations or a smaller step")
-    if transform is not None and tuned is None:
-        centre, scale = transform
-        result = result.with_vertices(result.vertices * scale + centre)
+    if tuned is not None:
+        seconds = time.perf_counter() - start  # tuning and the final run
     save(result, out, overwrite=args.force)
 
     summary = {"input": label, "output": out, "method": args.method,
@@ -293,13 +319,15 @@ def _run_denoise(args) -> int:
         if reference is None:
             summary["tuned"]["noise_sigma"] = float(tuned.sigma)
             summary["tuned"]["estimated_visual_error"] = float(tuned.error)
+            summary["tuned"]["estimated_relative_error"] = float(tuned.loss)
+            summary["warnings"] = caveats
     if reference is not None:
         summary["before"] = _errors(reference, mesh)
         summary["after"] = _errors(reference, result)
     if args.json:
         print(json.dumps(summary))
     else:
-        ps = " ".join(f"{k}={v:.6g}" if isinstance(v, float) else f"{k}={v}"
+        ps = " ".join(f"{k}={v!r}" if isinstance(v, float) else f"{k}={v}"
                       for k, v in summary["params"].items())
         print(f"{label} -> {out}: {args.method} {ps} ({seconds:.2f} s)")
         if tuned is not None:
@@ -318,8 +346,8 @@ def _run_denoise(args) -> int:
     return 0
 
 
-def _run_method(args, method, params, work):
-    """Run the method with a progress bar; (result, seconds)."""
+def _run_method(args, run, params):
+    """``run()`` with a progress bar; (result, seconds)."""
     from .denoise import progress
 
     start = time.perf_counter()
@@ -330,7 +358,7 @@ def _run_method(args, method, params, work):
     except ImportError:  # the bar is a convenience
         bar = None
     with progress(lambda i: bar.update(1) if bar is not None else None):
-        result = method(work, **params)
+        result = run()
         result.vertices.block_until_ready()
     if bar is not None:
         bar.close()

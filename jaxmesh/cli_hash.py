@@ -12,7 +12,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from .cli_denoise import CLIError
+from .cli_denoise import CLIError, _mesh_source
 
 __all__ = ["HASH"]
 
@@ -47,7 +47,6 @@ def _hasher(args):
 def _run(args) -> int:
     import jax
 
-    from .cli import _mesh_source
     from .hash import THRESHOLDS, similarity, verdict
     from .io import load
 

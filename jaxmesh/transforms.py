@@ -4,10 +4,9 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from .geometry import bounding_box_diagonal
 from .mesh import Mesh
 
-__all__ = ["normalize", "bounding_box_center"]
+__all__ = ["normalize", "bounding_box_center", "unit_frame", "to_frame", "from_frame"]
 
 
 def bounding_box_center(mesh: Mesh):
@@ -16,16 +15,39 @@ def bounding_box_center(mesh: Mesh):
     return 0.5 * (jnp.max(v, axis=-2) + jnp.min(v, axis=-2))
 
 
+def unit_frame(mesh: Mesh):
+    """The library's one working frame: ``(centre (*batch, 3), scale (*batch,))``
+    of the bounding box of the vertices that have neighbours (isolated and
+    padding vertices left out), c its centre and s its diagonal, so that
+    v' = (v - c) / s has a unit diagonal.  A box of zero diagonal gets s = 1.
+    Used by :func:`normalize`, the CLI and the tuner alike."""
+    v = mesh.vertices
+    used = (mesh.degree > 0)[:, None]
+    hi = jnp.max(jnp.where(used, v, -jnp.inf), axis=-2)
+    lo = jnp.min(jnp.where(used, v, jnp.inf), axis=-2)
+    diag = jnp.sqrt(jnp.sum((hi - lo) ** 2, axis=-1))
+    return 0.5 * (hi + lo), jnp.where(diag > 0, diag, jnp.ones_like(diag))
+
+
+def to_frame(mesh: Mesh, centre, scale) -> Mesh:
+    """v' = (v - c) / s."""
+    return mesh.with_vertices((mesh.vertices - centre[..., None, :]) / scale[..., None, None])
+
+
+def from_frame(mesh: Mesh, centre, scale) -> Mesh:
+    """v = v' s + c (the inverse of :func:`to_frame`)."""
+    return mesh.with_vertices(mesh.vertices * scale[..., None, None] + centre[..., None, :])
+
+
 def normalize(mesh: Mesh, *, return_transform: bool = False):
     """Centre the bounding box at the origin and scale its diagonal to 1:
-    v' = (v - c) / s with c the box centre and s its diagonal.
+    v' = (v - c) / s with c, s from :func:`unit_frame` (the box of the vertices
+    that have neighbours; isolated vertices follow the same map).
 
     With ``return_transform=True`` returns ``(mesh, c, s)`` so that
     ``v = v' * s + c`` undoes it.  A mesh whose vertices all coincide (s = 0)
     is only centred (s is reported as 1).
     """
-    c = bounding_box_center(mesh)
-    s = bounding_box_diagonal(mesh)
-    s = jnp.where(s > 0, s, jnp.ones_like(s))
-    out = mesh.with_vertices((mesh.vertices - c[..., None, :]) / s[..., None, None])
+    c, s = unit_frame(mesh)
+    out = to_frame(mesh, c, s)
     return (out, c, s) if return_transform else out

@@ -7,14 +7,23 @@ training set.  See :mod:`jaxmesh.tune.tuner` for the search.
 """
 
 from .auto import CANDIDATES, AutoResult, Candidate, choose_denoiser, edge_tilt
-from .noise_level import NOISE_ESTIMATORS, estimate_noise, umbrella_square_row_norms
+from .noise_level import (
+    LOW_NOISE,
+    NOISE_ESTIMATORS,
+    BlindTuningWarning,
+    blind_caveats,
+    estimate_noise,
+    noise_sigma,
+    umbrella_square_row_norms,
+)
 from .objectives import OBJECTIVES, noisy_visual_error_expectation, relative_error, sure_visual_error
 from .space import Coordinate, search_space
 from .tuner import TuneResult, frame, tune, tune_batch, tune_lambda, tune_shared
 
 __all__ = [
     "tune", "tune_lambda", "tune_batch", "tune_shared", "TuneResult", "frame",
-    "estimate_noise", "umbrella_square_row_norms", "NOISE_ESTIMATORS",
+    "estimate_noise", "noise_sigma", "umbrella_square_row_norms", "NOISE_ESTIMATORS",
+    "blind_caveats", "BlindTuningWarning", "LOW_NOISE",
     "choose_denoiser", "AutoResult", "Candidate", "CANDIDATES", "edge_tilt",
     "OBJECTIVES", "relative_error", "sure_visual_error", "noisy_visual_error_expectation",
     "Coordinate", "search_space",

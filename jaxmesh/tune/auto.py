@@ -54,7 +54,7 @@ from jaxtyping import Array, Float
 
 from ..geometry import face_normals, mean_edge_length, vertex_normals
 from ..mesh import Mesh
-from .noise_level import estimate_noise
+from .noise_level import blind_caveats, noise_sigma
 
 __all__ = ["Candidate", "CANDIDATES", "AutoResult", "edge_tilt", "choose_denoiser"]
 
@@ -166,10 +166,7 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
         raise ValueError(f"draws must be a positive int, got {draws!r}")
     if not (np.isfinite(a) and a > 0):
         raise ValueError(f"a must be a positive number, got {a!r}")
-    estimated = sigma is None
-    s = estimate_noise(noisy) if estimated else float(sigma)
-    if not (np.isfinite(s) and s > 0):
-        raise ValueError(f"sigma must be a positive noise standard deviation (mesh units), got {sigma!r}")
+    s, estimated = noise_sigma(noisy, sigma)
 
     y = noisy.vertices
     auxes = {m: METHODS[m].prepare(noisy) for m in {c.method for c in candidates} | {"guided_normal"}}
@@ -196,4 +193,5 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
     method, params, risk = table[0]
     best = noisy.with_vertices(_denoise(noisy, y, Candidate(method, params), auxes[method]))
     noisy_risk = (1 + a**2) * trace
+    blind_caveats(noisy, s, estimated, risk / noisy_risk)
     return AutoResult(method, params, best, s, estimated, risk, noisy_risk, bool(risk < noisy_risk), table)

@@ -44,6 +44,7 @@ from jaxtyping import Array
 
 from ..mesh import Mesh
 from ..metrics import visual_error
+from ..transforms import to_frame, unit_frame
 from .objectives import (
     OBJECTIVES,
     noisy_visual_error_expectation,
@@ -51,7 +52,7 @@ from .objectives import (
     relative_error,
     sure_visual_error,
 )
-from .noise_level import estimate_noise
+from .noise_level import blind_caveats, noise_sigma
 from .space import Coordinate, search_space
 
 __all__ = ["TuneResult", "tune", "tune_lambda", "tune_batch", "tune_shared", "frame"]
@@ -63,20 +64,9 @@ _GRID_DEFAULT = {1: 6, 2: 4}   # points per coordinate; 3 for three or more coor
 # --------------------------------------------------------------------------- frame
 
 
-def frame(mesh: Mesh):
-    """(centre (*batch, 3), scale (*batch,)): the bounding box of the vertices
-    that have neighbours (padding and isolated vertices left out), its centre
-    and diagonal; ``(v - centre) / scale`` has a unit diagonal."""
-    v = mesh.vertices
-    used = (mesh.degree > 0)[:, None]
-    hi = jnp.max(jnp.where(used, v, -jnp.inf), axis=-2)
-    lo = jnp.min(jnp.where(used, v, jnp.inf), axis=-2)
-    diag = jnp.sqrt(jnp.sum((hi - lo) ** 2, axis=-1))
-    return 0.5 * (hi + lo), jnp.where(diag > 0, diag, jnp.ones_like(diag))
-
-
-def _to_frame(mesh: Mesh, centre, scale) -> Mesh:
-    return mesh.with_vertices((mesh.vertices - centre[..., None, :]) / scale[..., None, None])
+#: the library's one working frame (:func:`jaxmesh.transforms.unit_frame`)
+frame = unit_frame
+_to_frame = to_frame
 
 
 # --------------------------------------------------------------------------- configuration
@@ -197,12 +187,18 @@ def _start(values, t, p: int):
     return jnp.stack(u0), jnp.stack(curv)
 
 
-def _search(loss, cfg: _Config, dtype):
+#: vertices × grid points evaluated at once by the coarse grid: a SURE evaluation keeps
+#: the linearised flow, ~10 kB per vertex (8.5 GB for 6 points on the 134k-vertex igea)
+_GRID_BATCH_VERTICES = 150_000
+
+
+def _search(loss, cfg: _Config, dtype, num_vertices: int):
     """Steps 2–4 of the module docstring.  Returns a dict of arrays."""
     p, n = len(cfg.coords), cfg.grid
     t, u_axis = _grid_axis(n, dtype)
     mesh_u = jnp.stack(jnp.meshgrid(*([u_axis] * p), indexing="ij"), axis=-1).reshape(-1, p)
-    grid_loss = loss(mesh_u)
+    batch = max(1, min(len(mesh_u), _GRID_BATCH_VERTICES // max(num_vertices, 1)))
+    grid_loss = jax.lax.map(lambda u: loss(u[None])[0], mesh_u, batch_size=batch)
     u0, h = _start(grid_loss.reshape((n,) * p), t, p)
     scale = jax.lax.rsqrt(h)
 
@@ -249,7 +245,7 @@ def _tune_one(noisy: Mesh, clean: Mesh | None, sigma, key, cfg: _Config, aux: di
     clean_n = None if clean is None else _to_frame(clean, centre, scale)
     sigma_n = None if sigma is None else sigma / scale
     loss = _loss_function(cfg, noisy_n, clean_n, sigma_n, key, aux)
-    out = _search(loss, cfg, noisy.dtype)
+    out = _search(loss, cfg, noisy.dtype, noisy.num_vertices)
     result_n = cfg.run(noisy_n, cfg.values(out["u"]), aux)
     out["vertices"] = result_n.vertices * scale[..., None, None] + centre[..., None, :]
     if clean is None:   # SURE needs its own pass (a JVP); in mesh units: relative SURE x E[E(noisy)]
@@ -284,7 +280,7 @@ def _shared_search(noisy: Mesh, clean: Mesh, sigma, key, cfg: _Config):  # metho
             noisy_n, clean_n, sigma_n, keys)
         return jnp.mean(per, axis=0)
 
-    out = _search(loss, cfg, noisy.vertices.dtype)
+    out = _search(loss, cfg, noisy.vertices.dtype, noisy.vertices.shape[0] * noisy.vertices.shape[1])
     out["loss"] = loss(out["u"][None])[0]
     out["error"] = out["loss"]
     return _named(cfg, out, final=1)
@@ -331,14 +327,11 @@ class TuneResult(eqx.Module):
         """Denoise ``mesh`` (any units) with the tuned parameters, in the same
         unit-diagonal frame the tuner used.  For a shared result this is how a
         parameter learned on a training set is used on unseen meshes."""
-        from ..denoise import METHODS
+        from ..denoise import denoise_in_unit_frame
 
         if jnp.ndim(next(iter(self.params.values()))) != 0:
             raise ValueError("apply needs a single result, not a batched one (index it first)")
-        centre, scale = frame(mesh)
-        method = METHODS[self.method]
-        out = method(_to_frame(mesh, centre, scale), **self.fixed, **self.params, **method.prepare(mesh))
-        return mesh.with_vertices(out.vertices * scale[..., None, None] + centre[..., None, :])
+        return denoise_in_unit_frame(mesh, self.method, **self.fixed, **self.params)
 
 
 def _result(cfg: _Config, out: dict, sigma, mesh) -> TuneResult:
@@ -370,7 +363,7 @@ def _sigma_for(noisy: Mesh, sigma, blind: bool):
     if not blind:
         return None
     if sigma is None:
-        return jnp.asarray(estimate_noise(noisy), noisy.dtype)
+        return jnp.asarray(noise_sigma(noisy)[0], noisy.dtype)
     s = jnp.asarray(sigma, noisy.dtype)
     if not bool(jnp.all(jnp.isfinite(s) & (s > 0))):
         raise ValueError(f"sigma must be a positive noise standard deviation (mesh units), got {sigma}")
@@ -441,6 +434,8 @@ def tune(noisy: Mesh, clean: Mesh | None = None, method: str = "kernel", *,
         res = _result(cfg, out, s, noisy.with_vertices(out["vertices"]))
         if best is None or float(res.loss) < float(best.loss):
             best = res
+    if blind:
+        blind_caveats(noisy, float(s), sigma is None, float(best.loss))
     return best
 
 
@@ -499,7 +494,7 @@ def tune_batch(noisy, clean=None, method: str = "kernel", *, iterations: int | N
     singles = unpack(stacked.vertices)
     if blind:
         if sigma is None:
-            s = jnp.asarray([estimate_noise(m) for m in singles], stacked.vertices.dtype)
+            s = jnp.asarray([noise_sigma(m)[0] for m in singles], stacked.vertices.dtype)
         else:
             s = jnp.broadcast_to(jnp.asarray(sigma, stacked.vertices.dtype), (b,))
             _sigma_for(singles[0], s, True)
@@ -559,7 +554,7 @@ def tune_shared(noisy, clean=None, method: str = "kernel", *, iterations: int | 
     cfg = _make_config(method, iterations, coords, objective, blind, grid, max_steps, rtol, atol, probes, fixed)
     s = None
     if blind:
-        s = (jnp.asarray([estimate_noise(m) for m in noisy], batch.mesh.vertices.dtype) if sigma is None
+        s = (jnp.asarray([noise_sigma(m)[0] for m in noisy], batch.mesh.vertices.dtype) if sigma is None
              else jnp.broadcast_to(jnp.asarray(sigma, batch.mesh.vertices.dtype), (len(noisy),)))
     key = jax.random.PRNGKey(key) if isinstance(key, int) else key
     out = jax.jit(lambda n, c, sg, kk: _shared_search(n, c, sg, kk, cfg))(batch.mesh, clean_batch, s, key)

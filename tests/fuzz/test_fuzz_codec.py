@@ -4,13 +4,9 @@ and one test per defect class the audit of issue 15 found."""
 from __future__ import annotations
 
 import lzma
-import struct
 import subprocess
 import sys
-import zlib
-from pathlib import Path
 
-import numpy as np
 import pytest
 
 import harness

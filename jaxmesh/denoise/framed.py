@@ -1,0 +1,35 @@
+"""Denoising in the library's one working frame (what ``jaxmesh denoise`` runs).
+
+A method's parameters are lengths or squared lengths in the units of the mesh
+they see (kernel λ is a squared length): run in :func:`jaxmesh.transforms.unit_frame`
+(bounding box of the used vertices centred at the origin, unit diagonal) they
+mean the same on every mesh.  The tuner tunes in the same frame, so a tuned
+value passed back in reproduces the tuned run exactly.
+"""
+
+from __future__ import annotations
+
+from ..mesh import Mesh
+from ..transforms import from_frame, to_frame, unit_frame
+from .registry import METHODS, Method, diverged
+
+__all__ = ["denoise_in_unit_frame"]
+
+
+def denoise_in_unit_frame(mesh: Mesh, method: str | Method, **params) -> Mesh:
+    """``method(mesh', **params)`` with mesh' = (mesh − c) / s (:func:`unit_frame`),
+    mapped back by v = v' s + c.  Auxiliary inputs (the face graph) are built
+    unless given.  Raises ``FloatingPointError`` when the run diverged
+    (non-finite, or a bounding box grown tenfold: :func:`diverged`)."""
+    m = METHODS[method] if isinstance(method, str) else method
+    if not isinstance(m, Method):
+        raise TypeError(f"method must be a registry name or a Method, got {type(method).__name__}")
+    centre, scale = unit_frame(mesh)
+    work = to_frame(mesh, centre, scale)
+    aux = {k: v for k, v in m.prepare(mesh).items() if params.get(k) is None}
+    out = m(work, **{**params, **aux})
+    if bool(diverged(work, out)):
+        shown = {k: v for k, v in params.items() if k not in m.aux}
+        raise FloatingPointError(f"{m.name} diverged (non-finite or exploding coordinates) with {shown}; "
+                                 "use a larger lam, fewer iterations or a smaller step")
+    return from_frame(out, centre, scale)
