@@ -4,7 +4,7 @@ The public names are re-exported here; each lives in a module of its own
 (see the README for the layout).
 """
 
-from . import attacks, compress, data, denoise, geometry, hash, metrics, operators, sparse, topology, tune
+from . import attacks, batch, compress, data, denoise, geometry, hash, metrics, operators, sparse, stats, topology, tune
 from .geometry import (
     bounding_box_diagonal,
     corner_angles,
@@ -43,13 +43,16 @@ __all__ = [
     "vertex_areas",
     "bounding_box_diagonal",
     "attacks",
+    "batch",
     "compress",
     "data",
     "denoise",
     "geometry",
+    "hash",
     "metrics",
     "operators",
     "sparse",
+    "stats",
     "topology",
     "tune",
 ]

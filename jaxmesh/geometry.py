@@ -25,6 +25,7 @@ __all__ = [
     "face_normals",
     "corner_angles",
     "corner_cotangents",
+    "cotangents_of_corners",
     "vertex_normals",
     "vertex_areas",
     "bounding_box_diagonal",
@@ -111,16 +112,25 @@ def corner_cotangents(mesh: Mesh) -> Float[Array, "*batch F 3"]:
     """cot of the interior angle at each corner: (e1 . e2) / ||e1 x e2||.
 
     A corner of a degenerate face, ||e1 x e2|| <= eps (||e1||^2 + ||e2||^2) with eps
-    the dtype's machine epsilon, gets cotangent 0 (scale-free guard).
+    the dtype's machine epsilon, gets cotangent 0 (scale-free guard).  The formula
+    is :func:`cotangents_of_corners`, which host (numpy) code calls too.
     """
-    p = face_corners(mesh)
-    e1 = jnp.roll(p, -1, axis=-2) - p
-    e2 = jnp.roll(p, -2, axis=-2) - p
-    cross = safe_norm(jnp.cross(e1, e2))
-    scale = jnp.sum(e1 * e1, axis=-1) + jnp.sum(e2 * e2, axis=-1)
-    eps = jnp.finfo(p.dtype).eps
+    return cotangents_of_corners(face_corners(mesh))
+
+
+def cotangents_of_corners(p, xp=jnp):
+    """cot at each corner of triangles given by their corner positions p
+    (..., 3, 3), with the degenerate-corner guard of :func:`corner_cotangents`.
+    ``xp`` is ``jax.numpy`` (default; gradient-safe norm) or ``numpy`` (host
+    code: the same rule, in float64, without JAX)."""
+    e1 = xp.roll(p, -1, axis=-2) - p
+    e2 = xp.roll(p, -2, axis=-2) - p
+    c = xp.cross(e1, e2)
+    cross = safe_norm(c) if xp is jnp else xp.sqrt(xp.sum(c * c, axis=-1))
+    scale = xp.sum(e1 * e1, axis=-1) + xp.sum(e2 * e2, axis=-1)
+    eps = xp.finfo(p.dtype).eps
     ok = cross > eps * scale
-    return jnp.where(ok, jnp.sum(e1 * e2, axis=-1) / jnp.where(ok, cross, 1), 0)
+    return xp.where(ok, xp.sum(e1 * e2, axis=-1) / xp.where(ok, cross, 1), 0)
 
 
 def vertex_normals(

@@ -309,3 +309,17 @@ def test_cli_hash_and_compare(capsys, tmp_path, spot, spot_robust):
     assert main(["hash", "--compare", str(a), str(b), str(a)]) == 1
     assert "exactly two" in capsys.readouterr().err
     assert main(["hash", str(tmp_path / "absent.ply")]) == 1
+
+
+def test_host_laplace_beltrami_uses_the_one_degenerate_face_rule():
+    """A sliver of height 1e-17: the host matrix (hash spectra) equals the JAX-defined
+    one (before: entries up to 6e34 from its own zero-area rule)."""
+    from jaxmesh.hash.spectrum import laplace_beltrami_host
+    from jaxmesh.sparse import laplace_beltrami_matrix
+
+    v = np.array([[0, 0, 0], [1, 0, 0], [0.5, 1e-17, 0], [0.5, 0.5, 1]], float)
+    f = np.array([[0, 1, 2], [0, 1, 3], [1, 2, 3], [2, 0, 3]])
+    host = laplace_beltrami_host(v, f).toarray()
+    ref = laplace_beltrami_matrix(jaxmesh.Mesh.from_arrays(v, f, warn=False)).toarray()
+    assert np.abs(host).max() < 100
+    np.testing.assert_allclose(host, ref, rtol=1e-12, atol=1e-12)

@@ -15,7 +15,8 @@ eigenvalues through scipy).  The attacks are in :mod:`jaxmesh.attacks`.
 from __future__ import annotations
 
 from .partition import metis_partition, submesh
-from .result import MeshHash, cosine_similarity, similarity
+from .compare import THRESHOLDS, similarity, verdict
+from .result import MeshHash, cosine_similarity
 from .robust import robust_hash, robust_similarity
 from .spanning_tree import euclidean_mst, euclidean_mst_length, graph_mst_length, tsallis_entropy
 from .spectrum import laplace_beltrami_eigenvalues, laplace_beltrami_host
@@ -43,15 +44,3 @@ __all__ = [
 
 #: The hash functions by name (the CLI's ``--method``).
 HASHES = {"robust": robust_hash, "thesis": mesh_hash}
-
-#: ρ at or above which two hashes are called the same model.  ``robust``: see
-#: :mod:`.robust`.  ``thesis``: no threshold separates models (experiments/hash
-#: measures a negative margin); 0.99 is the value that errs least there.
-THRESHOLDS = {"robust": 0.5, "thesis": 0.99}
-
-
-def verdict(rho: float, kind: str) -> bool:
-    """True if ``rho`` says "same model" for hashes of ``kind`` (:data:`THRESHOLDS`)."""
-    if kind not in THRESHOLDS:
-        raise ValueError(f"unknown hash kind {kind!r}; one of {sorted(THRESHOLDS)}")
-    return rho >= THRESHOLDS[kind]

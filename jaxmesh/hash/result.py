@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["MeshHash", "cosine_similarity", "similarity"]
+__all__ = ["MeshHash", "cosine_similarity", "scaled_vector"]
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -63,31 +63,7 @@ def cosine_similarity(h1, h2) -> float:
     return float(min(abs(a @ b) / (na * nb), 1.0))
 
 
-def _scaled(h: MeshHash) -> np.ndarray:
+def scaled_vector(h: MeshHash) -> np.ndarray:
     """μ / max μ from log μ: the same direction as h, never overflowing."""
     lv = np.asarray(h.log_vector, np.float64)
     return np.exp(lv - lv.max())
-
-
-def similarity(h1, h2) -> float:
-    """ρ between two hashes, in [0, 1], 1 = identical.
-
-    * two ``"thesis"`` hashes (or two plain vectors): the thesis's normalised
-      correlation ρ (eq.4), computed from log μ so that it never overflows;
-    * two ``"robust"`` hashes: :func:`jaxmesh.hash.robust.robust_similarity`.
-
-    Raises ``ValueError`` for hashes of different kinds or parameters.
-    """
-    if isinstance(h1, MeshHash) and isinstance(h2, MeshHash):
-        if h1.kind != h2.kind:
-            raise ValueError(f"cannot compare a {h1.kind!r} hash with a {h2.kind!r} hash")
-        if h1.params != h2.params:
-            raise ValueError(f"hashes made with different parameters: {h1.params} vs {h2.params}")
-        if h1.kind == "robust":
-            from .robust import robust_similarity
-
-            return robust_similarity(h1.vector, h2.vector)
-        return cosine_similarity(_scaled(h1), _scaled(h2))
-    if isinstance(h1, MeshHash) or isinstance(h2, MeshHash):
-        raise ValueError("compare two MeshHash objects or two plain vectors, not one of each")
-    return cosine_similarity(h1, h2)

@@ -17,27 +17,28 @@ import scipy.linalg
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from ..geometry import cotangents_of_corners
+
 __all__ = ["cotangent_parts", "laplace_beltrami_host", "symmetric_laplace_beltrami",
            "laplace_beltrami_eigenvalues"]
 
 
 def cotangent_parts(vertices: np.ndarray, faces: np.ndarray) -> tuple[sp.csr_matrix, np.ndarray]:
     """(L_c, η): L_c = D_c − W_c with (W_c)_ij = cot α_ij + cot β_ij, and η_i the total
-    area of the faces around v_i.  Host numpy; a zero-area face adds nothing."""
+    area of the faces around v_i.  Host numpy; the cotangents are
+    :func:`jaxmesh.geometry.cotangents_of_corners` (a degenerate corner adds nothing)."""
     v = np.asarray(vertices, np.float64)
     f = np.asarray(faces, np.int64)
     n = len(v)
     cross = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
     double_area = np.linalg.norm(cross, axis=1)
-    ok = double_area > 0
+    cot = cotangents_of_corners(v[f], xp=np)  # (F, 3): the one definition, degenerate rule included
     rows, cols, vals = [], [], []
     for k in range(3):  # the corner k is opposite the edge (k+1, k+2)
-        a, b, c = f[:, k], f[:, (k + 1) % 3], f[:, (k + 2) % 3]
-        dot = np.einsum("ij,ij->i", v[b] - v[a], v[c] - v[a])
-        cot = np.where(ok, dot / np.where(ok, double_area, 1.0), 0.0)
+        b, c = f[:, (k + 1) % 3], f[:, (k + 2) % 3]
         rows += [b, c]
         cols += [c, b]
-        vals += [cot, cot]
+        vals += [cot[:, k], cot[:, k]]
     w = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n))
     lc = (sp.diags(np.asarray(w.sum(axis=1)).ravel()) - w).tocsr()
     eta = np.bincount(f.ravel(), weights=np.repeat(0.5 * double_area, 3), minlength=n)
