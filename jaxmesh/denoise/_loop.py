@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import contextlib
 import contextvars
+import signal
+import threading
 import time
 from typing import Callable, Iterator
 
@@ -79,15 +81,33 @@ def _eager(x0) -> bool:
 
 def _chunked(body, x0, iterations: int, seconds: float = 0.25):
     """``fori_loop(0, iterations, body, x0)`` as one compiled program called on
-    chunks [lo, hi) whose length doubles while a chunk takes under ``seconds``."""
+    chunks [lo, hi) whose length doubles while a chunk takes under ``seconds``.
+
+    In the main thread with Python's default SIGINT handler, Ctrl-C is caught by a
+    handler of ours for the duration and raised as ``KeyboardInterrupt`` between two
+    chunks (a signal landing inside JAX's own Python code could otherwise be
+    swallowed there)."""
     run = jax.jit(lambda x, lo, hi: jax.lax.fori_loop(lo, hi, body, x))
-    x, done, chunk = x0, 0, 1
-    while done < iterations:
-        n = min(chunk, iterations - done)
-        start = time.perf_counter()
-        x = run(x, done, done + n)
-        jax.block_until_ready(x)
-        done += n
-        if time.perf_counter() - start < seconds:
-            chunk *= 2
+    hit: list[int] = []
+    previous = None
+    if threading.current_thread() is threading.main_thread() \
+            and signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        previous = signal.signal(signal.SIGINT, lambda signum, frame: hit.append(signum))
+    try:
+        x, done, chunk = x0, 0, 1
+        while done < iterations:
+            if hit:
+                raise KeyboardInterrupt
+            n = min(chunk, iterations - done)
+            start = time.perf_counter()
+            x = run(x, done, done + n)
+            jax.block_until_ready(x)
+            done += n
+            if time.perf_counter() - start < seconds:
+                chunk *= 2
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
+    if hit:
+        raise KeyboardInterrupt
     return x
