@@ -250,6 +250,11 @@ class Mesh(eqx.Module):
             raise ValueError(f"vertices must be floating point, got dtype {x.dtype}")
         return dataclasses.replace(self, vertices=x)
 
+    def same_connectivity(self, other: "Mesh") -> bool:
+        """True if ``other`` has the same vertex count and the same faces, in order."""
+        return (self.num_vertices == other.num_vertices and self.faces.shape == other.faces.shape
+                and bool(np.array_equal(np.asarray(self.faces), np.asarray(other.faces))))
+
     def astype(self, dtype) -> "Mesh":
         """The mesh with vertices cast to ``dtype`` (e.g. jnp.float32)."""
         return dataclasses.replace(self, vertices=self.vertices.astype(dtype))

@@ -48,6 +48,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..mesh import Mesh
+from ..metrics import rms_vertex_error
 from . import basis as _basis
 from . import connectivity as _conn
 from . import patches as _patches
@@ -85,6 +86,17 @@ class Compressed:
     @property
     def bits_per_vertex(self) -> float:
         return 8 * len(self.data) / self.mesh.num_vertices
+
+    def relative_error(self, original: Mesh) -> float:
+        """RMS vertex error of the reconstruction against ``original`` (matched through
+        ``order``), over the bounding-box diagonal of ``original``."""
+        v = np.asarray(original.vertices, np.float64)
+        inv = np.empty_like(self.order)
+        inv[self.order] = np.arange(len(self.order))
+        recon = np.asarray(self.mesh.vertices, np.float64)[inv]
+        diag = float(np.linalg.norm(v.max(0) - v.min(0)))
+        err = float(rms_vertex_error(original.with_vertices(v), recon))
+        return err / diag if diag > 0 else 0.0
 
 
 # --------------------------------------------------------------------------- coefficients

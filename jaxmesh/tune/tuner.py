@@ -39,9 +39,9 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-import optimistix as optx
 from jaxtyping import Array
 
+from ..denoise import METHODS, denoise_in_unit_frame
 from ..mesh import Mesh
 from ..metrics import visual_error
 from ..transforms import to_frame, unit_frame
@@ -53,9 +53,10 @@ from .objectives import (
     sure_visual_error,
 )
 from .noise_level import blind_caveats, noise_sigma
+from .search import search
 from .space import Coordinate, search_space
 
-__all__ = ["TuneResult", "tune", "tune_lambda", "tune_batch", "tune_shared", "frame"]
+__all__ = ["TuneResult", "tune", "tune_lambda", "frame"]
 
 _BAD_LOSS = 1e6          # stands in for a non-finite loss (relative units: 1 = the noisy input)
 _GRID_DEFAULT = {1: 6, 2: 4}   # points per coordinate; 3 for three or more coordinates
@@ -88,8 +89,6 @@ class _Config:
     probes: int
 
     def run(self, mesh: Mesh, values: dict, aux: dict) -> Mesh:
-        from ..denoise import METHODS
-
         return METHODS[self.method](mesh, **dict(self.statics), **values, **aux)
 
     def values(self, u) -> dict:
@@ -98,8 +97,6 @@ class _Config:
 
 def _make_config(method, iterations, coords, objective, blind, grid, max_steps, rtol, atol, probes,
                  fixed) -> _Config:
-    from ..denoise import METHODS
-
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; choose one of {sorted(METHODS)}")
     if objective not in OBJECTIVES:
@@ -156,88 +153,6 @@ def _loss_function(cfg: _Config, noisy: Mesh, clean: Mesh | None, sigma, key, au
 # --------------------------------------------------------------------------- the search
 
 
-def _grid_axis(n: int, dtype):
-    t = (jnp.arange(n, dtype=dtype) + 0.5) / n
-    return t, jnp.log(t) - jnp.log1p(-t)
-
-
-def _start(values, t, p: int):
-    """Per-coordinate parabola through the best grid point and its neighbours:
-    (u₀ (p,), curvature h in u (p,)).  values has shape (n,)*p."""
-    n = t.shape[0]
-    best = jnp.unravel_index(jnp.argmin(values), values.shape)
-    u0, curv = [], []
-    for a in range(p):
-        c = jnp.clip(best[a], 1, n - 2)
-        idx = [best[b] for b in range(p)]
-        e = []
-        for k in (c - 1, c, c + 1):
-            idx[a] = k
-            e.append(values[tuple(idx)])
-        e0, e1, e2 = e
-        h = t[1] - t[0]
-        second = e0 - 2 * e1 + e2
-        convex = second > 0
-        shift = 0.5 * h * (e0 - e2) / jnp.where(convex, second, 1)
-        ts = jnp.where(convex, jnp.clip(t[c] + shift, t[c] - h, t[c] + h), t[best[a]])
-        e_tt = jnp.where(convex, second / h**2, 0)
-        h_u = e_tt * (ts * (1 - ts)) ** 2               # d²E/du² at the vertex (E_t = 0 there)
-        u0.append(jnp.log(ts) - jnp.log1p(-ts))
-        curv.append(jnp.where(convex, jnp.clip(h_u, 1e-4, 1e4), 1.0))
-    return jnp.stack(u0), jnp.stack(curv)
-
-
-#: vertices × grid points evaluated at once by the coarse grid: a SURE evaluation keeps
-#: the linearised flow, ~10 kB per vertex (8.5 GB for 6 points on the 134k-vertex igea)
-_GRID_BATCH_VERTICES = 150_000
-
-
-def _search(loss, cfg: _Config, dtype, num_vertices: int):
-    """Steps 2–4 of the module docstring.  Returns a dict of arrays."""
-    p, n = len(cfg.coords), cfg.grid
-    t, u_axis = _grid_axis(n, dtype)
-    mesh_u = jnp.stack(jnp.meshgrid(*([u_axis] * p), indexing="ij"), axis=-1).reshape(-1, p)
-    batch = max(1, min(len(mesh_u), _GRID_BATCH_VERTICES // max(num_vertices, 1)))
-    grid_loss = jax.lax.map(lambda u: loss(u[None])[0], mesh_u, batch_size=batch)
-    u0, h = _start(grid_loss.reshape((n,) * p), t, p)
-    scale = jax.lax.rsqrt(h)
-
-    def fn(y, _):
-        f = loss(u0 + scale * y)
-        return f, f
-
-    solver = optx.BFGS(rtol=cfg.rtol, atol=cfg.atol)
-    options = {"autodiff_mode": "fwd"}
-    y0 = jnp.zeros(p, dtype)
-    f_struct = jax.ShapeDtypeStruct((), dtype)
-    state = solver.init(fn, y0, None, options, f_struct, f_struct, frozenset())
-    steps = cfg.max_steps
-    hist_y = jnp.full((steps, p), jnp.nan, dtype)
-    hist_f = jnp.full((steps,), jnp.nan, dtype)
-
-    def cond(carry):
-        _, state, k, _, _ = carry
-        done, _ = solver.terminate(fn, carry[0], None, options, state, frozenset())
-        return (k < steps) & ~done
-
-    def body(carry):
-        y, state, k, hy, hf = carry
-        y_new, state, aux = solver.step(fn, y, None, options, state, frozenset())
-        # a step returns the loss of the iterate accepted before it (y): record that pair.
-        # The first step only evaluates y0 and accepts it again, so step k fills slot k - 1.
-        slot = jnp.maximum(k - 1, 0)
-        return y_new, state, k + 1, hy.at[slot].set(y), hf.at[slot].set(aux)
-
-    y, state, k, hist_y, hist_f = jax.lax.while_loop(cond, body, (y0, state, 0, hist_y, hist_f))
-    done, result = solver.terminate(fn, y, None, options, state, frozenset())
-    u = u0 + scale * y
-    return {
-        "u": u, "converged": done & (result == optx.RESULTS.successful), "steps": k,
-        "grid_u": mesh_u, "grid_loss": grid_loss,
-        "history_u": u0 + scale * hist_y, "history_loss": hist_f,
-    }
-
-
 def _tune_one(noisy: Mesh, clean: Mesh | None, sigma, key, cfg: _Config, aux: dict):
     """Tune on one mesh (any units); jittable and vmappable over meshes."""
     centre, scale = frame(noisy)
@@ -245,7 +160,7 @@ def _tune_one(noisy: Mesh, clean: Mesh | None, sigma, key, cfg: _Config, aux: di
     clean_n = None if clean is None else _to_frame(clean, centre, scale)
     sigma_n = None if sigma is None else sigma / scale
     loss = _loss_function(cfg, noisy_n, clean_n, sigma_n, key, aux)
-    out = _search(loss, cfg, noisy.dtype, noisy.num_vertices)
+    out = search(loss, cfg, noisy.dtype, noisy.num_vertices)
     result_n = cfg.run(noisy_n, cfg.values(out["u"]), aux)
     out["vertices"] = result_n.vertices * scale[..., None, None] + centre[..., None, :]
     if clean is None:   # SURE needs its own pass (a JVP); in mesh units: relative SURE x E[E(noisy)]
@@ -264,26 +179,6 @@ def _named(cfg: _Config, out: dict, final: int) -> dict:
         out[key[:-2] or "params"] = cfg.values(out.pop(key))
     out["evaluations"] = out["grid_loss"].shape[-1] + out["steps"] + final
     return out
-
-
-def _shared_search(noisy: Mesh, clean: Mesh, sigma, key, cfg: _Config):  # methods without aux inputs
-    """One u for a padded batch of meshes: the loss is the mean of the per-mesh
-    relative losses (each mesh in its own frame)."""
-    centre, scale = jax.vmap(frame)(noisy)
-    noisy_n = jax.vmap(_to_frame)(noisy, centre, scale)
-    clean_n = None if clean is None else jax.vmap(_to_frame)(clean, centre, scale)
-    sigma_n = None if sigma is None else sigma / scale
-    keys = jax.random.split(key, scale.shape[0])
-
-    def loss(u):
-        per = jax.vmap(lambda nm, cm, s, k: _loss_function(cfg, nm, cm, s, k, {})(u))(
-            noisy_n, clean_n, sigma_n, keys)
-        return jnp.mean(per, axis=0)
-
-    out = _search(loss, cfg, noisy.vertices.dtype, noisy.vertices.shape[0] * noisy.vertices.shape[1])
-    out["loss"] = loss(out["u"][None])[0]
-    out["error"] = out["loss"]
-    return _named(cfg, out, final=1)
 
 
 # --------------------------------------------------------------------------- results
@@ -327,8 +222,6 @@ class TuneResult(eqx.Module):
         """Denoise ``mesh`` (any units) with the tuned parameters, in the same
         unit-diagonal frame the tuner used.  For a shared result this is how a
         parameter learned on a training set is used on unseen meshes."""
-        from ..denoise import denoise_in_unit_frame
-
         if jnp.ndim(next(iter(self.params.values()))) != 0:
             raise ValueError("apply needs a single result, not a batched one (index it first)")
         return denoise_in_unit_frame(mesh, self.method, **self.fixed, **self.params)
@@ -374,24 +267,9 @@ _tune_jit = jax.jit(_tune_one, static_argnames="cfg")
 
 
 def _method(name: str):
-    from ..denoise import METHODS
-
     if name not in METHODS:
         raise ValueError(f"unknown method {name!r}; choose one of {sorted(METHODS)}")
     return METHODS[name]
-
-
-def _aux_for_batch(method: str, noisy, singles) -> dict:
-    """Host-built inputs of ``method`` for a batch: shared when every element has the
-    same connectivity (a mesh with vertices (B, V, 3)); padded batches of different
-    meshes are refused for methods that need them."""
-    m = _method(method)
-    if not m.aux:
-        return {}
-    if not isinstance(noisy, Mesh):
-        raise ValueError(f"{method!r} needs the host-built face graph of each mesh, so tune_batch takes "
-                         "one mesh with vertices (B, V, 3) for it, not a padded batch of different meshes")
-    return m.prepare(singles[0])
 
 
 def tune(noisy: Mesh, clean: Mesh | None = None, method: str = "kernel", *,
@@ -442,121 +320,9 @@ def tune(noisy: Mesh, clean: Mesh | None = None, method: str = "kernel", *,
 def tune_lambda(noisy: Mesh, clean: Mesh | None = None, method: str = "kernel", **kwargs) -> TuneResult:
     """:func:`tune` of the kernel flow's λ alone (the thesis's one parameter);
     for another method, of its first continuous parameter."""
-    from ..denoise import METHODS
-
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; choose one of {sorted(METHODS)}")
     first = METHODS[method].continuous[:1]
     return tune(noisy, clean, method, names=kwargs.pop("names", first), **kwargs)
 
-
-def _as_batch(meshes):
-    """(stacked Mesh, vmap in_axes, unpack(vertices) -> list[Mesh], count)."""
-    from ..batch import PaddedBatch, pad_batch, unpad
-
-    if isinstance(meshes, Mesh):
-        if len(meshes.batch_shape) != 1:
-            raise ValueError(f"a batched mesh needs vertices (B, V, 3), got {meshes.vertices.shape}")
-        axes = jax.tree.map(lambda _: None, meshes)
-        axes = dataclasses.replace(axes, vertices=0)
-        b = meshes.batch_shape[0]
-        return meshes, axes, lambda x: [meshes.with_vertices(x[i]) for i in range(b)], b
-    batch = meshes if isinstance(meshes, PaddedBatch) else pad_batch(list(meshes))
-    return batch.mesh, 0, lambda x: unpad(batch, x), len(batch.num_vertices)
-
-
-def tune_batch(noisy, clean=None, method: str = "kernel", *, iterations: int | None = None,
-               names=None, bounds=None, objective: str = "visual", sigma=None, grid=None,
-               max_steps: int = 20, rtol: float = 1e-2, atol: float = 1e-2, probes: int = 1, key=0,
-               **fixed) -> tuple[TuneResult, list[Mesh]]:
-    """One tuned setting per mesh for a whole batch, in one jitted, vmapped call.
-
-    ``noisy`` (and ``clean``): a list of meshes of any sizes (padded with
-    :func:`jaxmesh.batch.pad_batch`), a :class:`~jaxmesh.batch.PaddedBatch`, or
-    one mesh with vertices (B, V, 3).  Blind when ``clean`` is None, with σ
-    per mesh given (``sigma``, shape (B,)) or estimated per mesh.  Returns
-    (a :class:`TuneResult` whose arrays have a leading B axis and whose ``mesh``
-    is None, the list of denoised meshes).  Each element equals :func:`tune` on
-    that mesh alone (tested).  One iteration count (tune the count per mesh
-    with :func:`tune`).
-    """
-    if iterations is not None and not isinstance(iterations, int):
-        raise ValueError("tune_batch takes one iteration count")
-    stacked, axes, unpack, b = _as_batch(noisy)
-    clean_stacked = None
-    if clean is not None:
-        clean_stacked, caxes, _, cb = _as_batch(clean)
-        if cb != b:
-            raise ValueError(f"{b} noisy meshes but {cb} clean ones")
-    blind = clean is None
-    coords = search_space(method, names, bounds)
-    cfg = _make_config(method, iterations, coords, objective, blind, grid, max_steps, rtol, atol, probes, fixed)
-    singles = unpack(stacked.vertices)
-    if blind:
-        if sigma is None:
-            s = jnp.asarray([noise_sigma(m)[0] for m in singles], stacked.vertices.dtype)
-        else:
-            s = jnp.broadcast_to(jnp.asarray(sigma, stacked.vertices.dtype), (b,))
-            _sigma_for(singles[0], s, True)
-    else:
-        s = None
-        for k, (m, c) in enumerate(zip(singles, unpack(clean_stacked.vertices))):
-            try:
-                _check_pair(m, c)
-            except ValueError as err:
-                raise ValueError(f"batch element {k}: {err}") from None
-    key = jax.random.PRNGKey(key) if isinstance(key, int) else key
-    aux = _aux_for_batch(method, noisy, singles)
-    in_axes = (axes, None if clean is None else caxes, None if s is None else 0, None, None)
-    run = jax.jit(jax.vmap(lambda n, c, sg, kk, ax: _tune_one(n, c, sg, kk, cfg, ax), in_axes=in_axes))
-    out = run(stacked, clean_stacked, s, key, aux)
-
-    outputs = unpack(out["vertices"])
-    if clean is not None:   # per unpadded mesh: padding must not count in the 1/2m
-        out["error"] = jnp.stack([visual_error(c, o) for c, o in zip(unpack(clean_stacked.vertices), outputs)])
-    else:
-        out["error"] = out["loss"] * jnp.stack(
-            [noisy_visual_error_expectation(m, s[i]) for i, m in enumerate(singles)])
-    return _result(cfg, out, s, None), outputs
-
-
-def tune_shared(noisy, clean=None, method: str = "kernel", *, iterations: int | None = None,
-                names=None, bounds=None, objective: str = "visual", sigma=None, grid=None,
-                max_steps: int = 20, rtol: float = 1e-2, atol: float = 1e-2, probes: int = 1, key=0,
-                **fixed) -> TuneResult:
-    """One setting shared by a training set of meshes: minimise the mean over
-    the meshes of each one's relative loss (each in its own unit-diagonal
-    frame, so meshes of any units count equally).  Use the result on unseen
-    meshes with :meth:`TuneResult.apply`.  Arguments as :func:`tune_batch`;
-    the result's ``error`` is the mean relative loss and ``mesh`` is None."""
-    if iterations is not None and not isinstance(iterations, int):
-        raise ValueError("tune_shared takes one iteration count")
-    from ..batch import pad_batch
-
-    noisy = list(noisy)
-    if _method(method).aux:
-        raise ValueError(f"tune_shared pads meshes of different sizes, which {method!r} (it needs the "
-                         "host-built face graph of each mesh) does not support; tune each mesh with tune")
-    batch = pad_batch(noisy)
-    clean_batch = None
-    if clean is not None:
-        clean = list(clean)
-        if len(clean) != len(noisy):
-            raise ValueError(f"{len(noisy)} noisy meshes but {len(clean)} clean ones")
-        for k, (m, c) in enumerate(zip(noisy, clean)):
-            try:
-                _check_pair(m, c)
-            except ValueError as err:
-                raise ValueError(f"training mesh {k}: {err}") from None
-        clean_batch = pad_batch(clean).mesh
-    blind = clean is None
-    coords = search_space(method, names, bounds)
-    cfg = _make_config(method, iterations, coords, objective, blind, grid, max_steps, rtol, atol, probes, fixed)
-    s = None
-    if blind:
-        s = (jnp.asarray([noise_sigma(m)[0] for m in noisy], batch.mesh.vertices.dtype) if sigma is None
-             else jnp.broadcast_to(jnp.asarray(sigma, batch.mesh.vertices.dtype), (len(noisy),)))
-    key = jax.random.PRNGKey(key) if isinstance(key, int) else key
-    out = jax.jit(lambda n, c, sg, kk: _shared_search(n, c, sg, kk, cfg))(batch.mesh, clean_batch, s, key)
-    return _result(cfg, out, s, None)
 

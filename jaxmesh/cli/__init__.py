@@ -1,0 +1,56 @@
+"""The ``jaxmesh`` command line (also ``python -m jaxmesh``).
+
+One module per command, each with ``HELP``, ``configure(parser)`` and
+``run(args) -> exit code``, listed in :data:`COMMANDS`; a new command is a new
+module and one line there.  Each command parses, makes one library call and
+prints.  Conventions, as for any Unix tool: results on stdout (``--json`` for
+machine output, one JSON object per line), diagnostics on stderr prefixed with
+``jaxmesh:``, exit status 0 on success, 1 on a bad input or failed operation,
+2 on a usage error, 130 on Ctrl-C.  Output files are never overwritten without
+``--force``.  Every command runs with 64-bit floats (files are never rounded).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import warnings
+
+from . import compress, convert, decompress, demo, denoise, hash, info, noise, stats
+from ._common import CLIError
+from ._run import run_command
+
+__all__ = ["main", "build_parser", "COMMANDS", "CLIError"]
+
+COMMANDS = {module.__name__.rsplit(".", 1)[-1]: module
+            for module in (info, convert, noise, denoise, demo, stats, hash, compress, decompress)}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from .. import __version__
+
+    parser = argparse.ArgumentParser(prog="jaxmesh", description="Differentiable triangle-mesh processing (JAX).")
+    parser.add_argument("--version", action="version", version=f"jaxmesh {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name, module in COMMANDS.items():
+        p = sub.add_parser(name, help=module.HELP, description=module.HELP)
+        module.configure(p)
+        p.set_defaults(_run=module.run)
+    return parser
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    print(f"jaxmesh: warning: {message}", file=sys.stderr)
+
+
+def main(argv: list[str] | None = None) -> int:
+    import jax
+
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "_run", None):
+        parser.print_help(sys.stderr)
+        return 2
+    jax.config.update("jax_enable_x64", True)  # the one place: files are read and written unrounded
+    warnings.showwarning = _show_warning
+    return run_command(args._run, args)

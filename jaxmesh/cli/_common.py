@@ -1,0 +1,115 @@
+"""What every command shares: the error type, input/output arguments and checks,
+the per-mesh record printer, and the capture of blind-tuning caveats."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import warnings
+from pathlib import Path
+from typing import Callable
+
+from .. import data
+from ..io import load
+
+__all__ = ["CLIError", "io_arguments", "mesh_arguments", "load_input", "mesh_source", "check_output",
+           "positional_output", "print_record", "with_caveats", "errors"]
+
+
+class CLIError(ValueError):
+    """Reported by :func:`jaxmesh.cli.main` as ``jaxmesh: error: ...`` (exit 1)."""
+
+
+def io_arguments(p: argparse.ArgumentParser) -> None:
+    """IN, OUT, --sample NAME, --force."""
+    p.add_argument("input", nargs="?", metavar="IN", help="mesh file to read (or use --sample)")
+    p.add_argument("output", nargs="?", metavar="OUT", help="mesh file to write (format from the suffix)")
+    p.add_argument("--sample", choices=sorted(data.SAMPLES), help="read a sample mesh shipped with jaxmesh")
+    p.add_argument("--force", action="store_true", help="replace OUT if it exists")
+
+
+def mesh_arguments(p: argparse.ArgumentParser, what: str = "mesh file(s)") -> None:
+    """MESH ..., --sample NAME (repeatable), --json."""
+    p.add_argument("mesh", nargs="*", metavar="MESH", help=what)
+    p.add_argument("--sample", action="append", choices=sorted(data.SAMPLES),
+                   help="a sample mesh shipped with jaxmesh (repeatable)")
+    p.add_argument("--json", action="store_true", help="one JSON object per mesh, per line")
+
+
+def load_input(args):
+    """(label, mesh) named by IN or --sample (float64: the CLI runs with x64)."""
+    if args.sample and args.input:
+        raise CLIError("give either IN or --sample, not both")
+    if args.sample:
+        return f"sample:{args.sample}", data.load_sample(args.sample, dtype="float64")
+    if not args.input:
+        raise CLIError("no input mesh: name IN or use --sample NAME")
+    return args.input, load(args.input)
+
+
+def mesh_source(args) -> list[tuple[str, Callable]]:
+    """(label, loader) for each mesh named by MESH arguments or --sample."""
+    out = [(f"sample:{n}", lambda n=n: data.load_sample(n, dtype="float64")) for n in args.sample or []]
+    out += [(path, lambda path=path: load(path)) for path in args.mesh or []]
+    if not out:
+        raise CLIError("no mesh given: name a MESH file or --sample NAME "
+                       f"(samples: {', '.join(sorted(data.SAMPLES))})")
+    return out
+
+
+def check_output(path: str, force: bool) -> None:
+    if Path(path).exists() and not force:
+        raise CLIError(f"{path} exists; use --force to replace it")
+
+
+def positional_output(args) -> str:
+    """OUT (with --sample the single positional argument is OUT)."""
+    if args.sample and args.input and not args.output:
+        args.output, args.input = args.input, None
+    if not args.output:
+        raise CLIError("no output file: name OUT")
+    return args.output
+
+
+def _format_value(v) -> str:
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    if v is None:
+        return "undefined"
+    return f"{v:.6g}" if isinstance(v, float) else str(v)
+
+
+def print_record(record: dict, as_json: bool, first: bool) -> None:
+    """One mesh's record: a JSON line, or a labelled block (blank line between meshes)."""
+    if as_json:
+        print(json.dumps(record), flush=True)
+        return
+    if not first:
+        print()
+    print(record["path"])
+    width = max(len(k) for k in record)
+    for key, value in record.items():
+        if key != "path":
+            print(f"  {key.replace('_', ' '):<{width}}  {_format_value(value)}")
+
+
+def with_caveats(fn, *args, **kwargs):
+    """(fn(...), caveats): warnings raised inside are printed as ``jaxmesh: warning:``
+    lines; the blind-tuning ones are also returned for the JSON report."""
+    from ..tune import BlindTuningWarning
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        out = fn(*args, **kwargs)
+    for w in caught:
+        print(f"jaxmesh: warning: {w.message}", file=sys.stderr)
+    return out, [str(w.message) for w in caught if issubclass(w.category, BlindTuningWarning)]
+
+
+def errors(reference, mesh) -> dict[str, float]:
+    """Visual error and mean normal angle error against a reference."""
+    from ..metrics import mean_normal_angle_error, visual_error
+
+    return {"visual_error": float(visual_error(reference, mesh)),
+            "normal_angle_deg": float(mean_normal_angle_error(reference, mesh))}

@@ -1,0 +1,93 @@
+"""What ``jaxmesh denoise`` prints: a summary line (or one JSON object), how the
+parameters were chosen, and the errors against ``--reference``."""
+
+from __future__ import annotations
+
+import json
+
+from ._common import errors
+
+
+def _errors_lines(summary: dict) -> None:
+    for key in ("visual_error", "normal_angle_deg"):
+        b, a = summary["before"][key], summary["after"][key]
+        print(f"  {key:<17} before {b:.6g}  after {a:.6g}" + (f"  ({a / b:.3f}x)" if b else ""))
+
+
+def _finish(args, summary: dict, mesh, reference, result) -> None:
+    if reference is not None:
+        summary["before"], summary["after"] = errors(reference, mesh), errors(reference, result)
+
+
+def report_run(args, label, out, mesh, reference, run, caveats, seconds) -> int:
+    summary = {"input": label, "output": out, "method": run.method, "params": run.params,
+               "seconds": round(seconds, 3)}
+    t = run.tuning
+    if t is not None:
+        summary["tuned"] = {"names": list(run.tuned), "mode": "blind" if reference is None else "supervised",
+                            "evaluations": int(t.evaluations), "converged": bool(t.converged),
+                            "relative_loss": float(t.loss)}
+        if reference is None:
+            summary["tuned"].update(noise_sigma=float(t.sigma), estimated_visual_error=float(t.error),
+                                    estimated_relative_error=float(t.loss))
+            summary["warnings"] = caveats
+    _finish(args, summary, mesh, reference, run.mesh)
+    if args.json:
+        print(json.dumps(summary))
+        return 0
+    ps = " ".join(f"{k}={v!r}" if isinstance(v, float) else f"{k}={v}" for k, v in run.params.items())
+    print(f"{label} -> {out}: {run.method} {ps} ({seconds:.2f} s)")  # every digit: rerunnable
+    if t is not None:
+        s = summary["tuned"]
+        how = (f"blind, noise sigma {s['noise_sigma']:.4g} ({'given' if args.noise_sigma else 'estimated'}), "
+               f"estimated visual error {s['estimated_visual_error']:.6g}" if reference is None
+               else "supervised against the reference")
+        print(f"  tuned {', '.join(run.tuned)} ({how}; {s['evaluations']} flow evaluations"
+              f"{'' if s['converged'] else ', NOT converged'})")
+    if reference is not None:
+        _errors_lines(summary)
+    return 0
+
+
+def report_auto(args, label, out, mesh, reference, choice, caveats, seconds) -> int:
+    summary = {"input": label, "output": out, "method": choice.method, "params": choice.params,
+               "seconds": round(seconds, 3), "auto": choice.summary(), "warnings": caveats}
+    _finish(args, summary, mesh, reference, choice.mesh)
+    if args.json:
+        print(json.dumps(summary))
+        return 0
+    ps = " ".join(f"{k}={v:g}" for k, v in choice.params.items())
+    print(f"{label} -> {out}: auto chose {choice.method} {ps} ({seconds:.2f} s)")
+    print(f"  noise sigma {choice.sigma:.4g} ({'estimated' if choice.estimated else 'given'}); estimated RMS "
+          f"normal error {choice.rms_tilt_degrees:.2f}° vs {summary['auto']['noisy_rms_normal_error_deg']:.2f}° "
+          "for the input (recorrupted estimate, both at 1.12x the noise)")
+    runner = next((r for r in choice.table if r[0] != choice.method), None)
+    if runner is not None:
+        print(f"  best other method: {runner[0]} {runner[1]} (estimate {runner[2]:.3g} vs {choice.risk:.3g})")
+    if reference is not None:
+        _errors_lines(summary)
+    return 0
+
+
+def progress_bar(name: str, total: int):
+    """A tqdm bar on stderr fed by :func:`jaxmesh.denoise.progress` (a terminal only)."""
+    import contextlib
+    import sys
+
+    from ..denoise import progress
+
+    try:
+        from tqdm.auto import tqdm
+    except ImportError:  # the bar is a convenience
+        return contextlib.nullcontext()
+    bar = tqdm(total=total, desc=name, unit="it", file=sys.stderr, disable=None, leave=False)
+
+    @contextlib.contextmanager
+    def managed():
+        with progress(lambda i: bar.update(1)):
+            try:
+                yield
+            finally:
+                bar.close()
+
+    return managed()

@@ -1,0 +1,78 @@
+"""``jaxmesh denoise IN OUT``: any registered method, or ``--method auto`` (the
+default: method and parameters chosen blind); ``--lam auto`` / ``--tune`` tune."""
+
+from __future__ import annotations
+
+import contextlib
+import time
+
+from ..denoise import METHODS
+from ..io import load, save
+from ..tune import choose_denoiser, denoise_with_tuning
+from ._common import CLIError, check_output, io_arguments, load_input, positional_output, with_caveats
+from ._denoise_report import progress_bar, report_auto, report_run
+from ._flags import add_parameter_flags, given_parameters, list_methods
+
+HELP = "denoise a mesh with any registered method"
+
+
+def configure(p) -> None:
+    io_arguments(p)
+    p.add_argument("--method", default="auto",
+                   help="denoising method, or 'auto' (default): choose the method and its parameters "
+                        "blind, by a recorrupted estimate of the normal error (see --list-methods)")
+    p.add_argument("--list-methods", action="store_true", help="list methods and their parameters, then exit")
+    add_parameter_flags(p)
+    p.add_argument("--reference", metavar="CLEAN", help="clean mesh (same connectivity): print the errors")
+    p.add_argument("--raw-units", action="store_true",
+                   help="run in the file's units (default: scaled to a unit bounding-box diagonal and "
+                        "back, so that kernel λ means the same for every mesh)")
+    p.add_argument("--tune", action="store_true",
+                   help="tune every continuous parameter of the method (as if each were 'auto')")
+    p.add_argument("--noise-sigma", type=float, metavar="S",
+                   help="noise standard deviation in the file's units, for blind tuning (default: estimated)")
+    p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    p.epilog = ("Method parameters are flags named after them (--lam, --iterations, --mu, ...). "
+                "A continuous parameter given as 'auto' (e.g. --lam auto) is tuned: against "
+                "--reference if given (supervised), else blind (Stein's unbiased risk estimate "
+                "of the visual error, noise from --noise-sigma or estimated).")
+
+
+def _load_pair(args):
+    """(label, mesh, reference or None, output path); the reference must share the connectivity."""
+    out = positional_output(args)
+    label, mesh = load_input(args)
+    check_output(out, args.force)
+    reference = load(args.reference) if args.reference else None
+    if reference is not None and not mesh.same_connectivity(reference):
+        raise CLIError(f"--reference {args.reference} does not have the connectivity of {label}")
+    return label, mesh, reference, out
+
+
+def run(args) -> int:
+    if args.list_methods:
+        return list_methods()
+    given = given_parameters(args)
+    if args.noise_sigma is not None and not args.noise_sigma > 0:
+        raise CLIError(f"--noise-sigma must be > 0, got {args.noise_sigma}")
+    if args.method == "auto" and (given or args.tune):
+        flags = ", ".join("--" + k.replace("_", "-") for k in sorted(given)) or "--tune"
+        raise CLIError(f"{flags} needs a named method (--method NAME); --method auto chooses its own parameters")
+    if args.method == "auto":
+        label, mesh, reference, out = _load_pair(args)
+        start = time.perf_counter()
+        choice, caveats = with_caveats(choose_denoiser, mesh, sigma=args.noise_sigma)
+        save(choice.mesh, out, overwrite=args.force)
+        return report_auto(args, label, out, mesh, reference, choice, caveats, time.perf_counter() - start)
+    if args.raw_units and (args.tune or "auto" in given.values()):
+        raise CLIError("tuning runs in the unit-diagonal frame; drop --raw-units")
+    label, mesh, reference, out = _load_pair(args)
+    start = time.perf_counter()
+    tuning = args.tune or "auto" in given.values()
+    total = given.get("iterations", METHODS[args.method].defaults().get("iterations", 1)) \
+        if args.method in METHODS else 1
+    with progress_bar(args.method, total) if not tuning else contextlib.nullcontext():
+        result, caveats = with_caveats(denoise_with_tuning, mesh, args.method, given, tune_all=args.tune,
+                                       reference=reference, sigma=args.noise_sigma, unit_frame=not args.raw_units)
+    save(result.mesh, out, overwrite=args.force)
+    return report_run(args, label, out, mesh, reference, result, caveats, time.perf_counter() - start)

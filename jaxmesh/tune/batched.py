@@ -1,0 +1,173 @@
+"""Tuning many meshes in one call: one setting per mesh (:func:`tune_batch`, vmapped)
+or one setting shared by a training set (:func:`tune_shared`)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import jax
+import jax.numpy as jnp
+
+from ..batch import PaddedBatch, pad_batch, unpad
+from ..mesh import Mesh
+from ..metrics import visual_error
+from ..transforms import to_frame as _to_frame
+from ..transforms import unit_frame as frame
+from .noise_level import noise_sigma
+from .objectives import noisy_visual_error_expectation
+from .search import search
+from .space import search_space
+from .tuner import (
+    TuneResult,
+    _check_pair,
+    _Config,
+    _loss_function,
+    _make_config,
+    _method,
+    _named,
+    _result,
+    _sigma_for,
+    _tune_one,
+)
+
+__all__ = ["tune_batch", "tune_shared"]
+
+
+def _aux_for_batch(method: str, noisy, singles) -> dict:
+    """Host-built inputs of ``method`` for a batch: shared when every element has the
+    same connectivity (a mesh with vertices (B, V, 3)); padded batches of different
+    meshes are refused for methods that need them."""
+    m = _method(method)
+    if not m.aux:
+        return {}
+    if not isinstance(noisy, Mesh):
+        raise ValueError(f"{method!r} needs the host-built face graph of each mesh, so tune_batch takes "
+                         "one mesh with vertices (B, V, 3) for it, not a padded batch of different meshes")
+    return m.prepare(singles[0])
+
+
+def _shared_search(noisy: Mesh, clean: Mesh, sigma, key, cfg: _Config):  # methods without aux inputs
+    """One u for a padded batch of meshes: the loss is the mean of the per-mesh
+    relative losses (each mesh in its own frame)."""
+    centre, scale = jax.vmap(frame)(noisy)
+    noisy_n = jax.vmap(_to_frame)(noisy, centre, scale)
+    clean_n = None if clean is None else jax.vmap(_to_frame)(clean, centre, scale)
+    sigma_n = None if sigma is None else sigma / scale
+    keys = jax.random.split(key, scale.shape[0])
+
+    def loss(u):
+        per = jax.vmap(lambda nm, cm, s, k: _loss_function(cfg, nm, cm, s, k, {})(u))(
+            noisy_n, clean_n, sigma_n, keys)
+        return jnp.mean(per, axis=0)
+
+    out = search(loss, cfg, noisy.vertices.dtype, noisy.vertices.shape[0] * noisy.vertices.shape[1])
+    out["loss"] = loss(out["u"][None])[0]
+    out["error"] = out["loss"]
+    return _named(cfg, out, final=1)
+
+
+def _as_batch(meshes):
+    """(stacked Mesh, vmap in_axes, unpack(vertices) -> list[Mesh], count)."""
+    if isinstance(meshes, Mesh):
+        if len(meshes.batch_shape) != 1:
+            raise ValueError(f"a batched mesh needs vertices (B, V, 3), got {meshes.vertices.shape}")
+        axes = jax.tree.map(lambda _: None, meshes)
+        axes = dataclasses.replace(axes, vertices=0)
+        b = meshes.batch_shape[0]
+        return meshes, axes, lambda x: [meshes.with_vertices(x[i]) for i in range(b)], b
+    batch = meshes if isinstance(meshes, PaddedBatch) else pad_batch(list(meshes))
+    return batch.mesh, 0, lambda x: unpad(batch, x), len(batch.num_vertices)
+
+
+def tune_batch(noisy, clean=None, method: str = "kernel", *, iterations: int | None = None,
+               names=None, bounds=None, objective: str = "visual", sigma=None, grid=None,
+               max_steps: int = 20, rtol: float = 1e-2, atol: float = 1e-2, probes: int = 1, key=0,
+               **fixed) -> tuple[TuneResult, list[Mesh]]:
+    """One tuned setting per mesh for a whole batch, in one jitted, vmapped call.
+
+    ``noisy`` (and ``clean``): a list of meshes of any sizes (padded with
+    :func:`jaxmesh.batch.pad_batch`), a :class:`~jaxmesh.batch.PaddedBatch`, or
+    one mesh with vertices (B, V, 3).  Blind when ``clean`` is None, with σ
+    per mesh given (``sigma``, shape (B,)) or estimated per mesh.  Returns
+    (a :class:`TuneResult` whose arrays have a leading B axis and whose ``mesh``
+    is None, the list of denoised meshes).  Each element equals :func:`tune` on
+    that mesh alone (tested).  One iteration count (tune the count per mesh
+    with :func:`tune`).
+    """
+    if iterations is not None and not isinstance(iterations, int):
+        raise ValueError("tune_batch takes one iteration count")
+    stacked, axes, unpack, b = _as_batch(noisy)
+    clean_stacked = None
+    if clean is not None:
+        clean_stacked, caxes, _, cb = _as_batch(clean)
+        if cb != b:
+            raise ValueError(f"{b} noisy meshes but {cb} clean ones")
+    blind = clean is None
+    coords = search_space(method, names, bounds)
+    cfg = _make_config(method, iterations, coords, objective, blind, grid, max_steps, rtol, atol, probes, fixed)
+    singles = unpack(stacked.vertices)
+    if blind:
+        if sigma is None:
+            s = jnp.asarray([noise_sigma(m)[0] for m in singles], stacked.vertices.dtype)
+        else:
+            s = jnp.broadcast_to(jnp.asarray(sigma, stacked.vertices.dtype), (b,))
+            _sigma_for(singles[0], s, True)
+    else:
+        s = None
+        for k, (m, c) in enumerate(zip(singles, unpack(clean_stacked.vertices))):
+            try:
+                _check_pair(m, c)
+            except ValueError as err:
+                raise ValueError(f"batch element {k}: {err}") from None
+    key = jax.random.PRNGKey(key) if isinstance(key, int) else key
+    aux = _aux_for_batch(method, noisy, singles)
+    in_axes = (axes, None if clean is None else caxes, None if s is None else 0, None, None)
+    run = jax.jit(jax.vmap(lambda n, c, sg, kk, ax: _tune_one(n, c, sg, kk, cfg, ax), in_axes=in_axes))
+    out = run(stacked, clean_stacked, s, key, aux)
+
+    outputs = unpack(out["vertices"])
+    if clean is not None:   # per unpadded mesh: padding must not count in the 1/2m
+        out["error"] = jnp.stack([visual_error(c, o) for c, o in zip(unpack(clean_stacked.vertices), outputs)])
+    else:
+        out["error"] = out["loss"] * jnp.stack(
+            [noisy_visual_error_expectation(m, s[i]) for i, m in enumerate(singles)])
+    return _result(cfg, out, s, None), outputs
+
+
+def tune_shared(noisy, clean=None, method: str = "kernel", *, iterations: int | None = None,
+                names=None, bounds=None, objective: str = "visual", sigma=None, grid=None,
+                max_steps: int = 20, rtol: float = 1e-2, atol: float = 1e-2, probes: int = 1, key=0,
+                **fixed) -> TuneResult:
+    """One setting shared by a training set of meshes: minimise the mean over
+    the meshes of each one's relative loss (each in its own unit-diagonal
+    frame, so meshes of any units count equally).  Use the result on unseen
+    meshes with :meth:`TuneResult.apply`.  Arguments as :func:`tune_batch`;
+    the result's ``error`` is the mean relative loss and ``mesh`` is None."""
+    if iterations is not None and not isinstance(iterations, int):
+        raise ValueError("tune_shared takes one iteration count")
+    noisy = list(noisy)
+    if _method(method).aux:
+        raise ValueError(f"tune_shared pads meshes of different sizes, which {method!r} (it needs the "
+                         "host-built face graph of each mesh) does not support; tune each mesh with tune")
+    batch = pad_batch(noisy)
+    clean_batch = None
+    if clean is not None:
+        clean = list(clean)
+        if len(clean) != len(noisy):
+            raise ValueError(f"{len(noisy)} noisy meshes but {len(clean)} clean ones")
+        for k, (m, c) in enumerate(zip(noisy, clean)):
+            try:
+                _check_pair(m, c)
+            except ValueError as err:
+                raise ValueError(f"training mesh {k}: {err}") from None
+        clean_batch = pad_batch(clean).mesh
+    blind = clean is None
+    coords = search_space(method, names, bounds)
+    cfg = _make_config(method, iterations, coords, objective, blind, grid, max_steps, rtol, atol, probes, fixed)
+    s = None
+    if blind:
+        s = (jnp.asarray([noise_sigma(m)[0] for m in noisy], batch.mesh.vertices.dtype) if sigma is None
+             else jnp.broadcast_to(jnp.asarray(sigma, batch.mesh.vertices.dtype), (len(noisy),)))
+    key = jax.random.PRNGKey(key) if isinstance(key, int) else key
+    out = jax.jit(lambda n, c, sg, kk: _shared_search(n, c, sg, kk, cfg))(batch.mesh, clean_batch, s, key)
+    return _result(cfg, out, s, None)

@@ -1,0 +1,78 @@
+"""Denoising with some parameters given and others to tune: what ``jaxmesh denoise``
+does with ``--lam auto`` or ``--tune``, as one library call.
+
+A tuned value is re-run through :func:`jaxmesh.denoise.denoise_in_unit_frame`,
+the same call as a given value, so passing the reported value back in writes
+the same mesh, bit for bit.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+from ..denoise import METHODS, denoise_in_unit_frame, diverged
+from ..mesh import Mesh
+from .tuner import TuneResult, tune
+
+__all__ = ["AUTO", "DenoiseRun", "split_auto", "denoise_with_tuning"]
+
+#: the value that marks a continuous parameter to tune
+AUTO = "auto"
+
+
+@dataclasses.dataclass(frozen=True)
+class DenoiseRun:
+    """``mesh``: the result (input units); ``params``: every parameter as used (tuned
+    ones as Python floats); ``tuned``: the names tuned; ``tuning``: the tuner's
+    :class:`TuneResult`, or None."""
+
+    mesh: Mesh
+    method: str
+    params: dict
+    tuned: tuple[str, ...]
+    tuning: TuneResult | None
+
+
+def split_auto(method: str, given: dict, tune_all: bool = False) -> tuple[dict, list[str]]:
+    """(fixed values, names to tune) from ``given``, where :data:`AUTO` marks a
+    continuous parameter to tune; ``tune_all`` adds every continuous one not given."""
+    m = METHODS[method]
+    names = [k for k, v in given.items() if v == AUTO]
+    if tune_all:
+        names += [k for k in m.continuous if k not in given]
+    for k in names:
+        if k not in m.params:
+            raise ValueError(f"method {method!r} has no parameter {k!r}; it takes {sorted(m.params)}")
+        if m.params[k].kind != "continuous":
+            raise ValueError(f"{method}: {k} cannot be {AUTO!r} (not continuous)")
+    fixed = {k: v for k, v in given.items() if k not in names}
+    m.resolve(**fixed, **{k: m.params[k].default for k in names})  # validate everything up front
+    return fixed, names
+
+
+def denoise_with_tuning(mesh: Mesh, method: str, given: dict | None = None, *, tune_all: bool = False,
+                        reference: Mesh | None = None, sigma=None, unit_frame: bool = True) -> DenoiseRun:
+    """Denoise ``mesh`` with ``method``: parameters in ``given`` fixed, those given as
+    :data:`AUTO` (or all continuous ones with ``tune_all``) tuned — against
+    ``reference`` if given, else blind (noise ``sigma`` or estimated).  Runs in
+    the unit frame (``unit_frame=False``: in the mesh's units, no tuning)."""
+    if method not in METHODS:
+        raise ValueError(f"unknown method {method!r}; choose one of {sorted(METHODS)}")
+    fixed, names = split_auto(method, dict(given or {}), tune_all)
+    if names and not unit_frame:
+        raise ValueError("tuning runs in the unit-diagonal frame; it cannot run in the mesh's units")
+    tuning = None
+    params = dict(fixed)
+    if names:
+        tuning = tune(mesh, reference, method, names=names, sigma=sigma, **fixed)
+        params.update({k: float(v) for k, v in tuning.params.items()})
+    full = METHODS[method].resolve(**params)
+    if unit_frame:
+        out = denoise_in_unit_frame(mesh, method, **full)
+    else:
+        out = METHODS[method](mesh, **full)
+        if bool(diverged(mesh, out)):
+            raise FloatingPointError(f"{method} diverged (a bounding box grown tenfold) with {fixed}; "
+                                     "use a larger lam, fewer iterations or a smaller step")
+    shown = {k: v for k, v in full.items() if METHODS[method].params[k].kind != "aux"}
+    return DenoiseRun(out, method, shown, tuple(names), tuning)
