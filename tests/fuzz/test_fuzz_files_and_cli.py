@@ -186,7 +186,7 @@ def test_a_directory_is_named_as_such(tmp_path, capsys):
 
 
 def test_memory_error_is_one_line(tmp_path, capsys, monkeypatch):
-    import jaxmesh.topology
+    import jaxmesh.cli.info
 
     src = tmp_path / "t.ply"
     jaxmesh.save(jaxmesh.Mesh.from_arrays(*tetrahedron_arrays()), src)
@@ -194,7 +194,7 @@ def test_memory_error_is_one_line(tmp_path, capsys, monkeypatch):
     def boom(*a, **k):
         raise MemoryError()
 
-    monkeypatch.setattr(jaxmesh.topology, "mesh_info", boom)
+    monkeypatch.setattr(jaxmesh.cli.info, "mesh_info", boom)
     code, err = _cli(capsys, "info", src)
     assert code == 1 and len(err) == 1 and err[0].startswith("jaxmesh: error: out of memory")
 
