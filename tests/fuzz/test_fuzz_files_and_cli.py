@@ -237,7 +237,9 @@ def test_ctrl_c_stops_a_long_denoise_within_seconds(tmp_path):
     subprocess.run(argv + ["--iterations", "3"], capture_output=True, check=True)
     startup = time.perf_counter() - start
     out.unlink()
-    proc = subprocess.Popen(argv + ["--iterations", "100000"], stderr=subprocess.PIPE, text=True)
+    # a shell's background jobs ignore SIGINT, and children inherit that: restore the default
+    proc = subprocess.Popen(argv + ["--iterations", "100000"], stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     time.sleep(2 * startup + 2)  # the loop is running
     assert proc.poll() is None
     start = time.perf_counter()
@@ -258,13 +260,17 @@ def test_library_denoise_is_interruptible_between_chunks():
     import threading
 
     mesh = jaxmesh.data.load_sample("bunny", dtype="float64")
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)  # ignored in background jobs
     timer = threading.Timer(1.0, lambda: os.kill(os.getpid(), signal.SIGINT))  # lands during the compile
     timer.start()
     start = time.perf_counter()
-    with pytest.raises(KeyboardInterrupt):
-        METHODS["kernel"](mesh, iterations=100000)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            METHODS["kernel"](mesh, iterations=100000)
+    finally:
+        timer.cancel()
+        signal.signal(signal.SIGINT, previous)
     assert time.perf_counter() - start < 30
-    timer.cancel()
 
 
 def test_chunked_eager_loop_equals_one_compiled_loop(tetra):
