@@ -52,20 +52,18 @@ from ..metrics import rms_vertex_error
 from . import basis as _basis
 from . import connectivity as _conn
 from . import patches as _patches
-from .rangecoder import Model, RangeCoderError, RangeDecoder, RangeEncoder, max_decisions
+from .coefficients import CodecError, decode_coefficients, decode_ranks, encode_coefficients, encode_ranks
+from .rangecoder import RangeCoderError, max_decisions
 
-__all__ = ["MAGIC", "FORMAT_VERSION", "CodecError", "Compressed", "auto_patch_size", "compress", "decompress",
+__all__ = ["MAGIC", "FORMAT_VERSION", "SECTIONS", "CodecError", "Compressed", "auto_patch_size", "compress", "decompress",
            "inspect"]
 
 MAGIC = b"\x89JXM\r\n\x1a\n"
 FORMAT_VERSION = 1
 _HEAD = struct.Struct("<8sHHIIIBdd3d5I")
 _FALLBACK, _UMBRELLA, _ORDER = 1, 2, 4
-_CTX = 18  # magnitude classes of the previous coefficient (0..16, 17 = first)
-
-
-class CodecError(ValueError):
-    """A ``.jxm`` file (or byte string) that cannot be decoded; the message says why."""
+#: the file's sections in order; the header stores their byte lengths in this order
+SECTIONS = ("connectivity", "labels", "ranks", "coefficients", "order")
 
 
 @dataclass(frozen=True)
@@ -97,68 +95,6 @@ class Compressed:
         diag = float(np.linalg.norm(v.max(0) - v.min(0)))
         err = float(rms_vertex_error(original.with_vertices(v), recon))
         return err / diag if diag > 0 else 0.0
-
-
-# --------------------------------------------------------------------------- coefficients
-def _mag_ctx(x: int) -> int:
-    return min(abs(x).bit_length(), 16)
-
-
-def _encode_coefficients(blocks: list[np.ndarray]) -> bytes:
-    enc = RangeEncoder()
-    zero, mag = Model(_CTX), Model(_CTX * 40)
-    for q in blocks:
-        for axis in range(3):
-            prev = _CTX - 1
-            for x in q[:, axis].tolist():
-                enc.bit(zero, prev, int(x != 0))
-                if x:
-                    enc.direct(int(x < 0), 1)
-                    enc.uint(mag, 40 * prev, abs(x) - 1, width=39)
-                prev = _mag_ctx(x)
-    return enc.finish()
-
-
-def _decode_coefficients(data: bytes, ranks: list[int]) -> list[np.ndarray]:
-    dec = RangeDecoder(data)
-    zero, mag = Model(_CTX), Model(_CTX * 40)
-    out = []
-    for r in ranks:
-        q = np.zeros((r, 3), np.int64)
-        for axis in range(3):
-            prev = _CTX - 1
-            col = [0] * r
-            for i in range(r):
-                x = 0
-                if dec.bit(zero, prev):
-                    neg = dec.direct(1)
-                    x = dec.uint(mag, 40 * prev, width=39) + 1
-                    if neg:
-                        x = -x
-                col[i] = x
-                prev = _mag_ctx(x)
-            q[:, axis] = col
-        out.append(q)
-    if not dec.exhausted():
-        raise CodecError("coefficient section has trailing bytes (corrupt)")
-    return out
-
-
-def _encode_ranks(ranks: list[int]) -> bytes:
-    enc = RangeEncoder()
-    mdl = Model(40)
-    for r in ranks:
-        enc.uint(mdl, 0, r - 1)
-    return enc.finish()
-
-
-def _decode_ranks(data: bytes, parts: int) -> list[int]:
-    dec = RangeDecoder(data)
-    mdl = Model(40)
-    out = [dec.uint(mdl, 0) + 1 for _ in range(parts)]
-    if not dec.exhausted():
-        raise CodecError("rank section has trailing bytes (corrupt)")
-    return out
 
 
 # --------------------------------------------------------------------------- shared steps
@@ -210,6 +146,23 @@ def auto_patch_size(keep: float) -> int:
     return int(np.clip(round(100 / keep), 1000, 3000))
 
 
+def _check_arguments(mesh: Mesh, keep, bits, basis, patch_size) -> int:
+    """Refuse bad arguments with the reason; returns the patch size to use."""
+    if mesh.batch_shape:
+        raise ValueError(f"compress needs a single mesh, got batch shape {mesh.batch_shape}")
+    if not (isinstance(keep, (int, float)) and 0 < keep <= 1):
+        raise ValueError(f"keep must be in (0, 1], got {keep!r}")
+    if not (isinstance(bits, (int, np.integer)) and 1 <= bits <= 30):
+        raise ValueError(f"bits must be an integer in [1, 30], got {bits!r}")
+    if basis not in _basis.KINDS:
+        raise ValueError(f"basis must be one of {_basis.KINDS}, got {basis!r}")
+    if patch_size is None:
+        patch_size = auto_patch_size(keep)
+    if not (isinstance(patch_size, (int, np.integer)) and patch_size >= 16):
+        raise ValueError(f"patch_size must be an integer >= 16, got {patch_size!r}")
+    return int(patch_size)
+
+
 def compress(mesh: Mesh, keep: float = 0.1, bits: int = 12, *, basis: str = "laplacian",
              patch_size: int | None = None, preserve_order: bool = False,
              dense_max: int = 1200) -> Compressed:
@@ -225,18 +178,7 @@ def compress(mesh: Mesh, keep: float = 0.1, bits: int = 12, *, basis: str = "lap
     faces are the same oriented triangles, in the decoder's order).
     Meshes with unused vertices are refused (remove them first).
     """
-    if mesh.batch_shape:
-        raise ValueError(f"compress needs a single mesh, got batch shape {mesh.batch_shape}")
-    if not (isinstance(keep, (int, float)) and 0 < keep <= 1):
-        raise ValueError(f"keep must be in (0, 1], got {keep!r}")
-    if not (isinstance(bits, (int, np.integer)) and 1 <= bits <= 30):
-        raise ValueError(f"bits must be an integer in [1, 30], got {bits!r}")
-    if basis not in _basis.KINDS:
-        raise ValueError(f"basis must be one of {_basis.KINDS}, got {basis!r}")
-    if patch_size is None:
-        patch_size = auto_patch_size(keep)
-    if not (isinstance(patch_size, (int, np.integer)) and patch_size >= 16):
-        raise ValueError(f"patch_size must be an integer >= 16, got {patch_size!r}")
+    patch_size = _check_arguments(mesh, keep, bits, basis, patch_size)
     v = np.asarray(mesh.vertices, np.float64)
     f = np.asarray(mesh.faces, np.int64)
     n = len(v)
@@ -265,8 +207,8 @@ def compress(mesh: Mesh, keep: float = 0.1, bits: int = 12, *, basis: str = "lap
     sections = [
         code.data,
         _patches.encode_labels(labels, adjacency) if len(ranks) > 1 else b"",
-        _encode_ranks(ranks),
-        _encode_coefficients(blocks),
+        encode_ranks(ranks),
+        encode_coefficients(blocks),
         b"",
     ]
     out_faces, out_vertices, out_order = faces_d, recon, order
@@ -284,7 +226,7 @@ def compress(mesh: Mesh, keep: float = 0.1, bits: int = 12, *, basis: str = "lap
     body = head + b"".join(sections)
     data = body + struct.pack("<I", zlib.crc32(body))
     out_mesh = Mesh.from_arrays(out_vertices, out_faces, warn=False)
-    sizes = dict(zip(("connectivity", "labels", "ranks", "coefficients", "order"), map(len, sections)))
+    sizes = dict(zip(SECTIONS, map(len, sections)))
     sizes["header"] = _HEAD.size + 4
     stats = {
         "bytes": len(data),
@@ -296,7 +238,7 @@ def compress(mesh: Mesh, keep: float = 0.1, bits: int = 12, *, basis: str = "lap
         "patches": len(ranks),
         "coefficients": int(sum(ranks)),
         "basis": basis,
-        "patch_size": int(patch_size),
+        "patch_size": patch_size,
         "step": step,
     }
     return Compressed(data=data, mesh=out_mesh, order=out_order, stats=stats)
@@ -352,7 +294,6 @@ def _parse(data: bytes):
 def inspect(data: bytes) -> dict:
     """Header fields and section sizes of ``.jxm`` bytes (validated, not decoded)."""
     h = _parse(data)
-    names = ("connectivity", "labels", "ranks", "coefficients", "order")
     return {
         "format_version": h["version"],
         "vertices": h["n"], "faces": h["nf"], "patches": h["parts"], "bits": h["bits"],
@@ -361,7 +302,7 @@ def inspect(data: bytes) -> dict:
         "connectivity_coder": "fallback" if h["flags"] & _FALLBACK else "traversal",
         "vertex_order_kept": bool(h["flags"] & _ORDER),
         "bytes": h["size"], "bits_per_vertex": 8 * h["size"] / max(h["n"], 1),
-        "section_bytes": dict(zip(names, map(len, h["sections"]))),
+        "section_bytes": dict(zip(SECTIONS, map(len, h["sections"]))),
     }
 
 
@@ -386,14 +327,14 @@ def decompress(data: bytes, *, dense_max: int = 1200) -> Mesh:
                   else np.zeros(n, np.int64))
         if parts > max_decisions(len(rank_data)):
             raise CodecError(f"{parts} patches cannot be described by a {len(rank_data)}-byte rank section")
-        ranks = _decode_ranks(rank_data, parts)
+        ranks = decode_ranks(rank_data, parts)
         sizes = np.bincount(labels, minlength=parts)
         if any(r > s for r, s in zip(ranks, sizes.tolist())):
             raise CodecError("a patch rank exceeds its vertex count (corrupt file)")
         if 3 * sum(ranks) > max_decisions(len(coef_data)):
             raise CodecError(f"{sum(ranks)} coefficients per axis cannot be described by a "
                              f"{len(coef_data)}-byte coefficient section (corrupt file)")
-        blocks = _decode_coefficients(coef_data, ranks)
+        blocks = decode_coefficients(coef_data, ranks)
         bases = _patch_bases(adjacency, labels, ranks, kind, dense_max)
         vertices = _reconstruct(bases, blocks, h["step"], n)
         if h["flags"] & _ORDER:

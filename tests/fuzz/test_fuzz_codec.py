@@ -62,7 +62,9 @@ def _forge(data, *, field=None, value=None, section=None, payload=None, word=Non
 
 
 def _ranks_block(ranks):
-    return C._encode_ranks(ranks)
+    from jaxmesh.compress.coefficients import encode_ranks
+
+    return encode_ranks(ranks)
 
 
 CLAIMS = {
