@@ -121,3 +121,17 @@ def test_subpackages_are_attributes_and_typed():
     for name in ("batch", "compress", "denoise", "hash", "stats", "tune"):
         assert name in jaxmesh.__all__ and getattr(jaxmesh, name).__name__ == f"jaxmesh.{name}"
     assert (ROOT / "py.typed").is_file()
+
+
+def test_modules_and_functions_stay_small():
+    """House rules (issue 16): no module over 400 lines, no function over 80."""
+    too_long = []
+    for path in ROOT.rglob("*.py"):
+        text = path.read_text()
+        if len(text.splitlines()) > 400:
+            too_long.append(f"{path.relative_to(ROOT)}: {len(text.splitlines())} lines")
+        for node in ast.walk(ast.parse(text)):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and node.end_lineno - node.lineno >= 80:
+                too_long.append(f"{path.relative_to(ROOT)}:{node.lineno} {node.name}: "
+                                f"{node.end_lineno - node.lineno + 1} lines")
+    assert too_long == []
