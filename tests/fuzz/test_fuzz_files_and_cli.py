@@ -311,3 +311,15 @@ def test_concurrent_writers_never_clobber(tmp_path):
     assert len(outcome) == 16 and len(winners) == 1
     assert target.read_bytes() == bytes([winners[0]]) * 100_000
     assert [p.name for p in tmp_path.iterdir()] == ["t.bin"]
+
+
+def test_a_reference_of_another_connectivity_is_named_not_broadcast(tmp_path, capsys):
+    """Before: "operands could not be broadcast together with shapes (4,4) (2,2)"."""
+    from conftest import grid_arrays
+
+    a, b = tmp_path / "tet.ply", tmp_path / "grid.ply"
+    jaxmesh.save(jaxmesh.Mesh.from_arrays(*tetrahedron_arrays()), a)
+    v, f = grid_arrays(1, 1)
+    jaxmesh.save(jaxmesh.Mesh.from_arrays(v, f), b)
+    code, err = _cli(capsys, "denoise", a, tmp_path / "o.ply", "--method", "taubin", "--reference", b)
+    assert code == 1 and err == [f"jaxmesh: error: --reference {b} does not have the connectivity of {a}"]
