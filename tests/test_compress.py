@@ -229,13 +229,30 @@ def test_repeated_eigenvalues_extend_r_and_are_canonical():
     np.testing.assert_allclose(B._canonical(u, b.values, 1e-8), b.vectors, atol=1e-12)
 
 
+def _splitmix_reference(i: int, j: int, salt: int) -> float:
+    """splitmix64 of (row, column, salt) in plain Python integers, from the basis docstring."""
+    mask = (1 << 64) - 1
+    z = (i * 0x9E3779B97F4A7C15 + (j + salt * 65537) * 0xD1B54A32D192ED03) & mask
+    z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & mask
+    z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & mask
+    z ^= z >> 31
+    return (z >> 11) * 2.0 ** -52 - 1.0
+
+
 def test_fixed_vectors_are_pinned():
-    # the decoder relies on these exact numbers: a change breaks every stored file
-    g = B.fixed_vectors(3, 2, salt=1)
-    assert g.shape == (3, 2) and np.all(np.abs(g) <= 1)
-    np.testing.assert_array_equal(g, B.fixed_vectors(3, 2, salt=1))
-    assert not np.array_equal(g, B.fixed_vectors(3, 2, salt=2))
-    assert float(B.fixed_vectors(1, 1, salt=0)[0, 0]) == pytest.approx(-1.0, abs=1e-15)  # splitmix64(0) = 0
+    """The decoder relies on these exact numbers (the patch bases' start vectors and
+    the reconstruction check sums): a change breaks every stored file.  Golden
+    values, and an independent integer implementation of the same recipe."""
+    golden = {(3, 2, 1): ["-0x1.31db55d52f3c8p-1", "-0x1.76e10102225ccp-1", "-0x1.8ab7595e756b0p-2",
+                          "-0x1.a4bed083a742ap-1", "-0x1.69d7aa1b4608cp-1", "-0x1.80a32a8934a1ep-1"],
+              (4, 1, 99): ["-0x1.3c739626db89ep-1", "-0x1.f915bacad0f00p-6", "-0x1.282c96c7f859cp-2",
+                           "-0x1.8cfafbfcd7744p-2"]}
+    for (m, k, salt), values in golden.items():
+        g = B.fixed_vectors(m, k, salt=salt)
+        assert [x.hex() for x in g.ravel()] == values
+        ref = [_splitmix_reference(i, j, salt) for i in range(m) for j in range(k)]
+        assert g.ravel().tolist() == ref
+    assert np.all(np.abs(B.fixed_vectors(50, 7, salt=3)) <= 1)
 
 
 # --------------------------------------------------------------------------- projection
