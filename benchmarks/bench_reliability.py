@@ -21,6 +21,10 @@ import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
+# a shell's background jobs ignore SIGINT and children inherit that: reset it, then exec
+# (a preexec_fn would fork a multithreaded JAX process)
+WITH_SIGINT = [sys.executable, "-c", "import os, signal, sys; signal.signal(signal.SIGINT, signal.SIG_DFL); "
+               "os.execv(sys.executable, [sys.executable, *sys.argv[1:]])"]
 PROBE = ("import resource, subprocess, sys\n"
          "p = subprocess.run(sys.argv[1:], capture_output=True)\n"
          "print(p.returncode, resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)\n")
@@ -41,8 +45,7 @@ def interrupt_latency(tmp: Path) -> float:
     subprocess.run(argv + ["--iterations", "3"], capture_output=True, check=True)
     startup = time.perf_counter() - start
     (tmp / "ci.ply").unlink()
-    proc = subprocess.Popen(argv + ["--iterations", "100000"], stderr=subprocess.PIPE,
-                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    proc = subprocess.Popen(WITH_SIGINT + argv[1:] + ["--iterations", "100000"], stderr=subprocess.PIPE)
     time.sleep(2 * startup + 2)
     start = time.perf_counter()
     proc.send_signal(signal.SIGINT)

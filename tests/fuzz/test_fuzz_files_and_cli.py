@@ -23,6 +23,11 @@ from jaxmesh.denoise import METHODS, Method
 
 from conftest import tetrahedron_arrays
 
+# a shell's background jobs ignore SIGINT and children inherit that: reset it, then exec
+# (a preexec_fn would fork a multithreaded JAX process)
+WITH_SIGINT = [sys.executable, "-c", "import os, signal, sys; signal.signal(signal.SIGINT, signal.SIG_DFL); "
+               "os.execv(sys.executable, [sys.executable, *sys.argv[1:]])"]
+
 
 def _no_bad(results):
     assert not harness.bad(results), harness.bad(results)[:5]
@@ -237,9 +242,7 @@ def test_ctrl_c_stops_a_long_denoise_within_seconds(tmp_path):
     subprocess.run(argv + ["--iterations", "3"], capture_output=True, check=True)
     startup = time.perf_counter() - start
     out.unlink()
-    # a shell's background jobs ignore SIGINT, and children inherit that: restore the default
-    proc = subprocess.Popen(argv + ["--iterations", "100000"], stderr=subprocess.PIPE, text=True,
-                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    proc = subprocess.Popen(WITH_SIGINT + argv[1:] + ["--iterations", "100000"], stderr=subprocess.PIPE, text=True)
     time.sleep(2 * startup + 2)  # the loop is running
     assert proc.poll() is None
     start = time.perf_counter()
