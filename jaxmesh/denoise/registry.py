@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+import warnings
 from typing import Any, Callable
 
 import jax
@@ -19,7 +20,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..geometry import bounding_box_diagonal
-from ..mesh import Mesh
+from ..mesh import Mesh, MeshWarning
 from .anisotropic import anisotropic_diffusion
 from .bilateral import bilateral_denoising
 from .curvature import cotangent_flow
@@ -139,11 +140,14 @@ _GRAPH = Param(None, "aux", "face_graph(mesh), built on the host; pass it to cal
 
 
 def _taubin_pass_band(p: dict) -> str | None:
+    """μ > −λ is allowed (the tuner may find it best) but is not Taubin's low-pass
+    filter (k_PB = 1/λ + 1/μ ≤ 0): a warning, not an error."""
     lam, mu = p["lam"], p["mu"]
     if isinstance(lam, jax.core.Tracer) or isinstance(mu, jax.core.Tracer):
         return None
     if np.any(np.asarray(mu, np.float64) > -np.asarray(lam, np.float64)):
-        return f"μ must satisfy μ ≤ -λ (a low-pass filter), got λ = {lam}, μ = {mu}"
+        warnings.warn(f"taubin with μ > -λ (λ = {lam}, μ = {mu}) is not a low-pass filter: "
+                      "it has no pass band and may amplify high frequencies", MeshWarning, stacklevel=4)
     return None
 
 
@@ -190,7 +194,7 @@ METHODS: dict[str, Method] = {
         Method("taubin", taubin_smoothing, {
             "lam": Param(0.5, "continuous", "shrinking step λ ∈ (0, 1]", (0.01, 1.0), True, domain=(0.0, 1.0),
                          closed="(]"),
-            "mu": Param(-0.53, "continuous", "inflating step μ ∈ [-1, 0), μ ≤ -λ", (-1.0, -0.01),
+            "mu": Param(-0.53, "continuous", "inflating step μ ∈ [-1, 0); μ ≤ -λ for a low-pass filter (else a warning)", (-1.0, -0.01),
                         domain=(-1.0, 0.0), closed="[)"),
             "iterations": _it(10),
             "boundary": _BOUNDARY,
