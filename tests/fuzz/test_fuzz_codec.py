@@ -85,13 +85,17 @@ def test_claims_of_2_31_elements_are_refused_in_bounded_memory(tmp_path, sphere_
         kw["payload"] = _ranks_block([2**31])
     src = tmp_path / "evil.jxm"
     src.write_bytes(_forge(sphere_file, **kw))
+    baseline = subprocess.run([sys.executable, "-c", RSS_PROBE, sys.executable, "-c", "import jaxmesh.cli"],
+                              capture_output=True, text=True, timeout=120).stdout.split("\n")[1]
     probe = subprocess.run([sys.executable, "-c", RSS_PROBE, sys.executable, "-m", "jaxmesh.cli", "decompress",
                             str(src), str(tmp_path / "out.ply")], capture_output=True, text=True, timeout=120)
     code, rss_kb, err = probe.stdout.split("\n", 2)
     err = err.rstrip("\n")
     assert code == "1" and err.startswith("jaxmesh: error: ") and "\n" not in err, err
     assert "corrupt" in err or "invalid" in err
-    assert int(rss_kb) < 200 * 1024  # the whole process, JAX's import included (~190 MB)
+    # what decoding adds to the process's import (JAX and scipy: 188 MB in the dev venv, 205 MB in a
+    # fresh one; the whole process peaked at 189.5 MB and 207 MB): a hostile file costs almost nothing
+    assert int(rss_kb) < int(baseline) + 25 * 1024
     assert not (tmp_path / "out.ply").exists()
 
 
