@@ -10,8 +10,10 @@ non-finite mesh).
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import io
+import shutil
 import tempfile
 from pathlib import Path
 
@@ -67,6 +69,7 @@ def setup():
     import jaxmesh
 
     tmp = Path(tempfile.mkdtemp(prefix="jaxmesh-fuzz-cli-"))
+    atexit.register(shutil.rmtree, tmp, ignore_errors=True)
     paths = {}
     for name, (v, f) in MESHES.items():
         p = tmp / f"{name}.obj"

@@ -113,6 +113,11 @@ def run(suite: str, indices, *, mem_mb: int = 200, timeout_s: float = 20.0, grac
             results.append({"i": i, "label": f"case {i}", "outcome": outcome,
                             "detail": f"worker exit {proc.poll()}", "seconds": wait})
             break
+        try:  # let a healthy worker finish (its setup's temporary files are removed at exit)
+            proc.stdin.close()
+            proc.wait(timeout=10)
+        except (OSError, subprocess.TimeoutExpired):
+            pass
         proc.kill()
         proc.wait()
         for pipe in (proc.stdin, proc.stdout):

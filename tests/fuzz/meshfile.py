@@ -20,6 +20,8 @@ or an error where the file was valid), ``traceback`` (another exception).
 
 from __future__ import annotations
 
+import atexit
+import shutil
 import tempfile
 import warnings
 from pathlib import Path
@@ -45,6 +47,7 @@ def setup():
     v, f = np.asarray(s.vertices, np.float64), np.asarray(s.faces, np.int64)
     mesh = jaxmesh.Mesh.from_arrays(v, f)
     tmp = Path(tempfile.mkdtemp(prefix="jaxmesh-fuzz-mesh-"))
+    atexit.register(shutil.rmtree, tmp, ignore_errors=True)
     jaxmesh.save(mesh, tmp / "base.ply")
     stl_ascii = "solid s\n" + "".join(
         "facet normal 0 0 0\nouter loop\n" + "".join("vertex %.17g %.17g %.17g\n" % tuple(v[i]) for i in t)
