@@ -14,7 +14,7 @@ def _errors_lines(summary: dict) -> None:
         print(f"  {key:<17} before {b:.6g}  after {a:.6g}" + (f"  ({a / b:.3f}x)" if b else ""))
 
 
-def _finish(args, summary: dict, mesh, reference, result) -> None:
+def _add_errors(summary: dict, mesh, reference, result) -> None:
     if reference is not None:
         summary["before"], summary["after"] = errors(reference, mesh), errors(reference, result)
 
@@ -31,7 +31,7 @@ def report_run(args, label, out, mesh, reference, run, caveats, seconds) -> int:
             summary["tuned"].update(noise_sigma=float(t.sigma), estimated_visual_error=float(t.error),
                                     estimated_relative_error=float(t.loss))
             summary["warnings"] = caveats
-    _finish(args, summary, mesh, reference, run.mesh)
+    _add_errors(summary, mesh, reference, run.mesh)
     if args.json:
         print(json.dumps(summary))
         return 0
@@ -52,7 +52,7 @@ def report_run(args, label, out, mesh, reference, run, caveats, seconds) -> int:
 def report_auto(args, label, out, mesh, reference, choice, caveats, seconds) -> int:
     summary = {"input": label, "output": out, "method": choice.method, "params": choice.params,
                "seconds": round(seconds, 3), "auto": choice.summary(), "warnings": caveats}
-    _finish(args, summary, mesh, reference, choice.mesh)
+    _add_errors(summary, mesh, reference, choice.mesh)
     if args.json:
         print(json.dumps(summary))
         return 0

@@ -7,8 +7,7 @@ import os
 import sys
 import threading
 
-from ..io import IN_PROGRESS, MeshFileError
-from ._common import CLIError
+from ..io import IN_PROGRESS
 
 __all__ = ["run_command"]
 
@@ -55,7 +54,7 @@ def run_command(run, args) -> int:
     """Exit status of ``run(args)``: 0, or 1 with one ``jaxmesh: error:`` line."""
     try:
         return int(_in_worker(run, args) or 0)
-    except (CLIError, MeshFileError, FileExistsError, ValueError, FloatingPointError) as err:
+    except (ValueError, FileExistsError, FloatingPointError) as err:  # CLIError, MeshFileError, CodecError too
         print(f"jaxmesh: error: {err}", file=sys.stderr)
         return 1
     except BrokenPipeError:  # e.g. `jaxmesh info --json a b | head -1`

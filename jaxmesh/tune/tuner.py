@@ -12,7 +12,8 @@ The search, for continuous parameters θ in bounded coordinates u (:mod:`.space`
    input.  Tuned parameter values are reported in this frame (the CLI
    denoises in it too).
 2. **Coarse grid.**  n points per coordinate, uniform in σ(u) (so uniform in
-   log θ for a log range), evaluated as one batched call; the loss is the
+   log θ for a log range), evaluated in blocks of points bounded by the mesh
+   size (all at once on small meshes; one by one on large ones); the loss is the
    error relative to the noisy input's, so the grid values are
    dimensionless.
 3. **Start and preconditioner.**  Along each coordinate a parabola through
