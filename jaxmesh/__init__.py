@@ -1,10 +1,15 @@
 """jaxmesh: differentiable triangle-mesh processing in JAX.
 
 The public names are re-exported here; each lives in a module of its own
-(see the README for the layout).
+(see the README for the layout).  The core (the mesh, its files and geometry)
+is imported with the package; the feature subpackages (``denoise``, ``tune``,
+``compress``, ``hash``, ``stats``, ...) on first use, so ``import jaxmesh`` and the
+command line start without loading what they do not need.
 """
 
-from . import attacks, batch, compress, data, denoise, geometry, hash, metrics, operators, sparse, stats, topology, tune
+import importlib
+
+from . import geometry, topology
 from .geometry import (
     bounding_box_diagonal,
     corner_angles,
@@ -23,6 +28,22 @@ from .topology import mesh_info
 from .transforms import normalize
 
 __version__ = "0.1.0"
+
+#: subpackages imported on first attribute access (PEP 562)
+_LAZY = ("attacks", "batch", "compress", "data", "denoise", "hash", "metrics", "operators", "sparse",
+         "stats", "tune")
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        module = importlib.import_module(f".{name}", __name__)
+        globals()[name] = module
+        return module
+    raise AttributeError(f"module 'jaxmesh' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_LAZY))
 
 __all__ = [
     "Mesh",
