@@ -21,14 +21,28 @@ SHARED_MESHES = Path(
 )
 
 
+_MAP_LIMIT = 30_000   # of the kernel's vm.max_map_count (65,530 by default)
+
+
+def _memory_maps() -> int:
+    try:
+        with open("/proc/self/maps", "rb") as f:
+            return sum(1 for _ in f)
+    except OSError:      # not Linux: no such limit to watch
+        return 0
+
+
 @pytest.fixture(autouse=True, scope="module")
 def _release_compiled_programs():
-    """Drop JAX's compiled programs after each test module.  Every XLA executable
-    holds memory mappings; a whole-suite process that keeps them all passes the
-    kernel's vm.max_map_count (65,530) and XLA crashes (SIGSEGV) in its next compile."""
+    """Drop JAX's compiled programs after a test module once the process holds many
+    memory mappings.  Every XLA executable holds some; a whole-suite process that
+    keeps them all passes the kernel's vm.max_map_count (65,530) and XLA crashes
+    (SIGSEGV) in its next compile.  Below the limit the caches are kept, so modules
+    share compiled programs."""
     yield
-    jax.clear_caches()
-    gc.collect()
+    if _memory_maps() > _MAP_LIMIT:
+        jax.clear_caches()
+        gc.collect()
 
 
 def shared_mesh_path(name: str) -> Path:

@@ -12,6 +12,25 @@ from jaxmesh.cli import main
 from conftest import shared_mesh_path
 
 
+@pytest.fixture(scope="module")
+def small_pair(tmp_path_factory):
+    """A noisy icosphere (642 vertices, σ = 0.3 ℓ̄) with one isolated vertex far away
+    (so the boxes of all and of used vertices differ), and its clean original, as
+    files.  The commands' logic does not need the 2.9k-vertex sample; the tests that
+    tune share one compiled tuner through these shapes."""
+    import trimesh
+
+    d = tmp_path_factory.mktemp("small")
+    s = trimesh.creation.icosphere(3)
+    clean = jaxmesh.Mesh.from_arrays(np.vstack([s.vertices, [[5.0, 5.0, 5.0]]]), s.faces, warn=False)
+    noisy = jaxmesh.add_noise(clean, 0.3, 7)
+    noisy = noisy.with_vertices(noisy.vertices.at[-1].set(clean.vertices[-1]))
+    paths = str(d / "noisy.ply"), str(d / "clean.ply")
+    jaxmesh.save(noisy, paths[0])
+    jaxmesh.save(clean, paths[1])
+    return paths
+
+
 def test_info_json_on_sample(capsys):
     assert main(["info", "--json", "--sample", "spot"]) == 0
     info = json.loads(capsys.readouterr().out)
@@ -101,14 +120,17 @@ def test_noise_then_denoise_with_reference(capsys, tmp_path):
     unit, centre, scale = jaxmesh.normalize(m, return_transform=True)
     expect = jaxmesh.denoise.kernel_diffusion(unit, 0.5, 4).vertices * scale + centre
     np.testing.assert_allclose(jaxmesh.load(out).vertices, expect, atol=1e-12)
-    # every method runs from the CLI with its defaults
+
+
+@pytest.mark.slow   # one compile per method (~25 s in all); the default run denoises with several
+def test_every_method_runs_from_the_cli_with_its_defaults(tmp_path, small_pair):
+    noisy, _ = small_pair
     for name in jaxmesh.denoise.METHODS:
         assert main(["denoise", noisy, str(tmp_path / f"{name}.ply"), "--method", name]) == 0, name
 
 
-def test_denoise_errors(capsys, tmp_path):
-    noisy, out = str(tmp_path / "n.ply"), str(tmp_path / "o.ply")
-    assert main(["noise", "--sample", "spot", noisy, "--sigma", "0.3"]) == 0
+def test_denoise_errors(capsys, tmp_path, small_pair):
+    noisy, out = small_pair[0], str(tmp_path / "o.ply")
     assert main(["denoise", noisy, out, "--method", "taubin", "--sigma-c", "1"]) == 1
     assert "has no parameter(s) ['sigma_c']" in capsys.readouterr().err
     assert main(["denoise", noisy, out, "--method", "magic"]) == 1
@@ -144,14 +166,17 @@ def test_list_methods_and_demo(capsys, tmp_path):
     assert main(["demo", "--out", str(tmp_path), "--force"]) == 0
 
 
-def test_denoise_lam_auto_blind_and_supervised(capsys, tmp_path):
-    import jaxmesh
+def test_denoise_lam_auto_blind(capsys, tmp_path, small_pair):
+    noisy, _ = small_pair
+    assert main(["denoise", noisy, str(tmp_path / "blind.ply"), "--method", "kernel", "--lam", "auto"]) == 0
+    text = capsys.readouterr().out
+    assert "tuned lam (blind, noise sigma" in text and "estimated)" in text
+
+
+def test_denoise_lam_auto_supervised(capsys, tmp_path, small_pair):
     from jaxmesh.tune import tune
 
-    noisy, clean = str(tmp_path / "noisy.ply"), str(tmp_path / "clean.ply")
-    assert main(["noise", "--sample", "spot", noisy, "--sigma", "0.1", "--seed", "2"]) == 0
-    assert main(["noise", "--sample", "spot", clean, "--sigma", "0"]) == 0
-    capsys.readouterr()
+    noisy, clean = small_pair
     out = str(tmp_path / "sup.ply")
     assert main(["denoise", noisy, out, "--method", "kernel", "--lam", "auto", "--reference", clean, "--json"]) == 0
     s = json.loads(capsys.readouterr().out)
@@ -160,10 +185,6 @@ def test_denoise_lam_auto_blind_and_supervised(capsys, tmp_path):
     assert s["params"]["lam"] == pytest.approx(float(want.params["lam"]), rel=1e-9)
     assert s["after"]["visual_error"] == pytest.approx(float(want.error), rel=1e-9)
     np.testing.assert_allclose(jaxmesh.load(out).vertices, want.mesh.vertices, atol=1e-12)
-    blind = str(tmp_path / "blind.ply")
-    assert main(["denoise", noisy, blind, "--method", "kernel", "--lam", "auto"]) == 0
-    text = capsys.readouterr().out
-    assert "tuned lam (blind, noise sigma" in text and "estimated)" in text
     # refusals
     assert main(["denoise", noisy, str(tmp_path / "x.ply"), "--method", "bilateral", "--lam", "auto"]) == 1
     assert "has no parameter 'lam'" in capsys.readouterr().err
@@ -207,20 +228,17 @@ def test_denoise_auto_is_the_default_and_says_what_it_chose(capsys, tmp_path):
     assert "--lam needs a named method" in capsys.readouterr().err
 
 
-def test_lam_auto_then_the_reported_lam_writes_the_same_file(capsys, tmp_path):
+def test_lam_auto_then_the_reported_lam_writes_the_same_file(capsys, tmp_path, small_pair):
     """One frame for the CLI and the tuner: on a mesh with an isolated vertex far
     away (where the bounding boxes of all and of used vertices differ), --lam auto
     and --lam <the λ it reports> run the same computation, bit for bit."""
-    m = jaxmesh.data.load_sample("spot", dtype=np.float64)
-    v = np.vstack([np.asarray(m.vertices), [[5.0, 5.0, 5.0]]])
-    noisy = jaxmesh.add_noise(jaxmesh.Mesh.from_arrays(v, np.asarray(m.faces), warn=False), 0.2, 0)
-    src = tmp_path / "n.ply"
-    jaxmesh.save(noisy, src)
-    assert main(["denoise", str(src), str(tmp_path / "a.ply"), "--method", "kernel", "--lam", "auto"]) == 0
+    src, clean = small_pair
+    assert main(["denoise", src, str(tmp_path / "a.ply"), "--method", "kernel", "--lam", "auto",
+                 "--reference", clean]) == 0
     line = capsys.readouterr().out.splitlines()[0]
     lam = line.split("lam=")[1].split()[0]  # printed as repr: every digit
-    assert main(["denoise", str(src), str(tmp_path / "b.ply"), "--method", "kernel", "--lam", lam]) == 0
+    assert main(["denoise", src, str(tmp_path / "b.ply"), "--method", "kernel", "--lam", lam]) == 0
     assert (tmp_path / "a.ply").read_bytes() == (tmp_path / "b.ply").read_bytes()
     # and the isolated vertex stays where it was
     out = jaxmesh.load(tmp_path / "a.ply", dtype=np.float64)
-    np.testing.assert_allclose(np.asarray(out.vertices)[-1], np.asarray(noisy.vertices)[-1], atol=1e-12)
+    np.testing.assert_allclose(np.asarray(out.vertices)[-1], [5.0, 5.0, 5.0], atol=1e-12)

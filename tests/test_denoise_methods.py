@@ -44,28 +44,41 @@ def _spot_cases(names=None):
     return [pytest.param(n, marks=[pytest.mark.slow] if n in HEAVY_ON_SPOT else []) for n in (names or NAMES)]
 
 
+def compiled(method, mesh, **static):
+    """``x (*b, V, 3), **params -> method(mesh with x, **static)`` under one ``jit``, the
+    host-built inputs (face graph) passed in: one compile serves every call of the same
+    shapes.  ``static``: the integer and choice parameters (iterations, ...)."""
+    aux = method.prepare(mesh)
+    return jax.jit(lambda x, **p: method(mesh.with_vertices(x), **aux, **static, **p).vertices)
+
+
 @pytest.mark.parametrize("name", _spot_cases())
-def test_denoises_spot(noisy_spot, name):
+def test_denoises_spot_and_is_translation_and_scale_invariant(noisy_spot, name):
+    """One compiled flow per method: it reduces the error on spot, and shifting (and,
+    but for the kernel flow's λ, a squared length, scaling) the input shifts (scales)
+    the output."""
     clean, noisy = noisy_spot
-    out = METHODS[name](noisy)
-    assert np.all(np.isfinite(np.asarray(out.vertices)))
-    assert float(visual_error(clean, out)) < 0.8 * float(visual_error(clean, noisy))
+    f = compiled(METHODS[name], noisy)
+    a = f(noisy.vertices)
+    assert np.all(np.isfinite(np.asarray(a)))
+    assert float(visual_error(clean, a)) < 0.8 * float(visual_error(clean, noisy))
+    shift = jnp.array([0.5, -0.3, 0.2])
+    assert_same_up_to_median_ties(name, f(noisy.vertices + shift) - shift, a)
+    if name in SCALE_FREE:
+        assert_same_up_to_median_ties(name, f(1000.0 * noisy.vertices) / 1000.0, a)
 
 
 @pytest.mark.parametrize("name", NAMES)
 def test_jit_equals_eager_and_batch_equals_loop(small_sphere, name):
     method = METHODS[name]
     eager = method(small_sphere).vertices
-    # the normal-filtering methods need their face graph from the host when traced
-    aux = method.prepare(small_sphere)
-    jitted = eqx.filter_jit(lambda m, aux: method(m, **aux))(small_sphere, aux).vertices
-    np.testing.assert_allclose(jitted, eager, rtol=1e-9, atol=1e-11)
+    f = compiled(method, small_sphere)
+    np.testing.assert_allclose(f(small_sphere.vertices), eager, rtol=1e-9, atol=1e-11)
     keys = jax.random.split(jax.random.PRNGKey(1), 3)
     copies = jnp.stack([jaxmesh.add_noise(small_sphere, 0.1, k).vertices for k in keys])
-    batched = method(small_sphere.with_vertices(copies)).vertices
+    batched = f(copies)
     for b in range(3):
-        single = method(small_sphere.with_vertices(copies[b])).vertices
-        np.testing.assert_allclose(batched[b], single, rtol=1e-8, atol=SOLVER_ATOL.get(name, 1e-10))
+        np.testing.assert_allclose(batched[b], f(copies[b]), rtol=1e-8, atol=SOLVER_ATOL.get(name, 1e-10))
 
 
 def assert_same_up_to_median_ties(name, b, a):
@@ -78,43 +91,27 @@ def assert_same_up_to_median_ties(name, b, a):
     assert np.median(err) < 1e-9 and err.max() < 0.02
 
 
-@pytest.mark.parametrize("name", _spot_cases())
-def test_translation_invariance(noisy_spot, name):
-    _, noisy = noisy_spot
-    shift = jnp.array([0.5, -0.3, 0.2])
-    a = METHODS[name](noisy).vertices
-    b = METHODS[name](noisy.with_vertices(noisy.vertices + shift)).vertices - shift
-    assert_same_up_to_median_ties(name, b, a)
-
-
-@pytest.mark.parametrize("name", _spot_cases(SCALE_FREE))
-def test_scale_invariance(noisy_spot, name):
-    _, noisy = noisy_spot
-    a = METHODS[name](noisy).vertices
-    b = METHODS[name](noisy.with_vertices(1000.0 * noisy.vertices)).vertices / 1000.0
-    assert_same_up_to_median_ties(name, b, a)
-
-
 def _slow_if(heavy, name, *rest):
-    """Cases over ~25 s (FEM / CG inside, slow to compile) run with -m slow; every method
+    """Cases over ~10 s (FEM / CG inside, slow to compile) run with -m slow; every method
     keeps a finite-difference check in the default run (positions, below)."""
     return pytest.param(name, *rest, marks=[pytest.mark.slow] if name in heavy else [])
 
 
 def _continuous_cases():
-    return [_slow_if(("geometric",), n, p) for n in NAMES for p in METHODS[n].continuous]
+    """The tuner differentiates the continuous parameters in forward mode: that mode, for
+    every parameter, is checked by default; both modes run with -m slow."""
+    return [pytest.param(n, p, m, marks=[pytest.mark.slow] if m == ("fwd", "rev") or n == "geometric" else [])
+            for n in NAMES for p in METHODS[n].continuous for m in (("fwd",), ("fwd", "rev"))]
 
 
-@pytest.mark.parametrize("name,param", _continuous_cases())
-def test_gradient_in_each_continuous_parameter(small_sphere, name, param):
+@pytest.mark.parametrize("name,param,modes", _continuous_cases())
+def test_gradient_in_each_continuous_parameter(small_sphere, name, param, modes):
     method = METHODS[name]
     w = jax.random.normal(jax.random.PRNGKey(2), small_sphere.vertices.shape)
     base = method.defaults()[param]
-
-    def loss(p):  # one iteration: the loop body is what is differentiated
-        return jnp.sum(w * method(small_sphere, iterations=1, **{param: p}).vertices)
-
-    check_grads(loss, (jnp.asarray(float(base)),), order=1, modes=("fwd", "rev"), atol=1e-5, rtol=1e-4)
+    f = compiled(method, small_sphere, iterations=1)   # the loop body is what is differentiated
+    loss = jax.jit(lambda p: jnp.sum(w * f(small_sphere.vertices, **{param: p})))
+    check_grads(loss, (jnp.asarray(float(base)),), order=1, modes=modes, atol=1e-5, rtol=1e-4)
 
 
 # guided filtering chooses patches by an argmin: on the jittered sphere near ties flip under
@@ -122,12 +119,9 @@ def test_gradient_in_each_continuous_parameter(small_sphere, name, param):
 # stable (test_feature_denoise.py)
 @pytest.mark.parametrize("name", [n for n in NAMES if n != "guided_normal"])
 def test_gradient_in_the_positions(small_sphere, name):
-    method = METHODS[name]
     w = jax.random.normal(jax.random.PRNGKey(4), small_sphere.vertices.shape)
-
-    def loss(x):
-        return jnp.sum(w * method(small_sphere.with_vertices(x), iterations=1).vertices)
-
+    f = compiled(METHODS[name], small_sphere, iterations=1)
+    loss = jax.jit(lambda x: jnp.sum(w * f(x)))
     check_grads(loss, (small_sphere.vertices,), order=1, modes=("rev",), atol=1e-5, rtol=1e-4,
                 eps=FD_EPS.get(name))
 
@@ -142,8 +136,9 @@ def test_float32_gradients_are_finite_and_close_to_float64(small_sphere, name):
 
     def grad(dtype):
         m = small_sphere.astype(dtype)
-        f = lambda p: jnp.sum(w.astype(dtype) * method(m, **{param: p}).vertices)  # noqa: E731
-        return jax.grad(f)(jnp.asarray(base, dtype))
+        f = compiled(method, m)
+        return jax.jit(jax.grad(lambda p: jnp.sum(w.astype(dtype) * f(m.vertices, **{param: p}))))(
+            jnp.asarray(base, dtype))
 
     g32, g64 = grad(jnp.float32), grad(jnp.float64)
     assert g32.dtype == jnp.float32 and np.isfinite(float(g32))
@@ -165,10 +160,16 @@ def degenerate_meshes():
 @pytest.mark.parametrize("name", NAMES)
 def test_degenerate_input_gives_finite_output(name):
     mesh = degenerate_meshes()
-    out = METHODS[name](mesh).vertices
+    f = compiled(METHODS[name], mesh)
+
+    @jax.jit
+    def output_and_gradient(x):        # of sum(out²): one compile for both
+        out, pull = jax.vjp(f, x)
+        return out, pull(2.0 * out)[0]
+
+    out, grads = output_and_gradient(mesh.vertices)
     assert np.all(np.isfinite(np.asarray(out)))
     np.testing.assert_array_equal(out[6], mesh.vertices[6])   # isolated vertex stays put
-    grads = jax.grad(lambda x: jnp.sum(METHODS[name](mesh.with_vertices(x)).vertices ** 2))(mesh.vertices)
     assert np.all(np.isfinite(np.asarray(grads)))
 
 

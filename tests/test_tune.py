@@ -89,13 +89,13 @@ def test_tuning_loss_gradients_match_finite_differences(blind):
     nn, cn = in_frame(noisy, clean)
     cfg = _make_config("kernel", 2, search_space("kernel"), "visual", blind, None, 5, 1e-3, 1e-3, 1, {})
     sigma = 0.2 * float(jaxmesh.mean_edge_length(nn)) if blind else None
-    loss = _loss_function(cfg, nn, None if blind else cn, sigma, jax.random.PRNGKey(0), {})
+    loss = jax.jit(_loss_function(cfg, nn, None if blind else cn, sigma, jax.random.PRNGKey(0), {}))
     modes = ("fwd",) if blind else ("fwd", "rev")    # the tuner differentiates forward
     check_grads(lambda u: loss(u[None])[0], (jnp.array([0.3]),), order=1, modes=modes, atol=1e-6, rtol=1e-4)
     if blind:
         return
     cfg2 = _make_config("taubin", 2, search_space("taubin"), "visual", blind, None, 5, 1e-3, 1e-3, 1, {})
-    loss2 = _loss_function(cfg2, nn, None if blind else cn, sigma, jax.random.PRNGKey(0), {})
+    loss2 = jax.jit(_loss_function(cfg2, nn, None if blind else cn, sigma, jax.random.PRNGKey(0), {}))
     check_grads(lambda u: loss2(u[None])[0], (jnp.array([0.2, -0.4]),), order=1, modes=("fwd",),
                 atol=1e-6, rtol=1e-4)
 
