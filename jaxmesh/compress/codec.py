@@ -40,10 +40,10 @@ section), never decoded into a wrong mesh.
 
 from __future__ import annotations
 
-import lzma
 import struct
 import zlib
 from dataclasses import dataclass, field
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -52,18 +52,23 @@ from ..metrics import rms_vertex_error
 from . import basis as _basis
 from . import connectivity as _conn
 from . import patches as _patches
-from .coefficients import CodecError, decode_coefficients, decode_ranks, encode_coefficients, encode_ranks
-from .rangecoder import RangeCoderError, max_decisions
+from ._sections import _FALLBACK, _ORDER, _UMBRELLA, SECTION_TABLE, _patch_bases, _reconstruct
+from .coefficients import CodecError
+from .rangecoder import RangeCoderError
 
 __all__ = ["MAGIC", "FORMAT_VERSION", "SECTIONS", "CodecError", "Compressed", "auto_patch_size", "compress", "decompress",
            "inspect"]
 
 MAGIC = b"\x89JXM\r\n\x1a\n"
 FORMAT_VERSION = 1
-_HEAD = struct.Struct("<8sHHIIIBdd3d5I")
-_FALLBACK, _UMBRELLA, _ORDER = 1, 2, 4
-#: the file's sections in order; the header stores their byte lengths in this order
-SECTIONS = ("connectivity", "labels", "ranks", "coefficients", "order")
+#: the file's sections, in file order: the header stores their byte lengths in this order
+SECTIONS = tuple(sec.name for sec in SECTION_TABLE)
+_HEAD = struct.Struct(f"<8sHHIIIBdd3d{len(SECTIONS)}I")
+
+
+def _check_sums(vertices: np.ndarray) -> np.ndarray:
+    g = _basis.fixed_vectors(len(vertices), 1, salt=99)[:, 0]
+    return g @ vertices
 
 
 @dataclass(frozen=True)
@@ -96,43 +101,6 @@ class Compressed:
         err = float(rms_vertex_error(original.with_vertices(v), recon))
         return err / diag if diag > 0 else 0.0
 
-
-# --------------------------------------------------------------------------- shared steps
-def _check_sums(vertices: np.ndarray) -> np.ndarray:
-    g = _basis.fixed_vectors(len(vertices), 1, salt=99)[:, 0]
-    return g @ vertices
-
-
-def _patch_bases(adjacency, labels: np.ndarray, ranks_or_keep, kind: str, dense_max: int):
-    """[(index, B)] per patch; ``ranks_or_keep`` is a float (encoder) or the stored ranks."""
-    parts = int(labels.max()) + 1
-    order = np.argsort(labels, kind="stable")
-    bounds = np.searchsorted(labels[order], np.arange(parts + 1))
-    out = []
-    for p in range(parts):
-        index = order[bounds[p]:bounds[p + 1]]
-        sub = _patches.patch_adjacency(adjacency, index)
-        if isinstance(ranks_or_keep, float):
-            r = int(np.ceil(ranks_or_keep * len(index)))
-            b = _basis.graph_basis(sub, r, kind, dense_max=dense_max)
-        else:
-            r = int(ranks_or_keep[p])
-            if r > len(index):
-                raise CodecError("a patch rank exceeds its vertex count (corrupt file)")
-            b = _basis.graph_basis(sub, r, kind, dense_max=dense_max)
-            if b.r != r:
-                raise CodecError(
-                    f"patch {p}: this machine's eigensolver put an eigenvalue cluster boundary at "
-                    f"{b.r}, the file says {r}; the basis cannot be reproduced here")
-        out.append((index, b.vectors))
-    return out
-
-
-def _reconstruct(bases, blocks, step: float, n: int) -> np.ndarray:
-    out = np.zeros((n, 3))
-    for (index, vecs), q in zip(bases, blocks):
-        out[index] = vecs @ (q * step)
-    return out
 
 
 # --------------------------------------------------------------------------- public
@@ -203,23 +171,18 @@ def compress(mesh: Mesh, keep: float = 0.1, bits: int = 12, *, basis: str = "lap
             c = np.linalg.lstsq(vecs, vd[index], rcond=None)[0]
         blocks.append(np.rint(c / step).astype(np.int64))
     recon = _reconstruct(bases, blocks, step, n)
-    ranks = [b.shape[0] for b in blocks]
-    sections = [
-        code.data,
-        _patches.encode_labels(labels, adjacency) if len(ranks) > 1 else b"",
-        encode_ranks(ranks),
-        encode_coefficients(blocks),
-        b"",
-    ]
+    enc = SimpleNamespace(code=code, labels=labels, adjacency=adjacency, ranks=[b.shape[0] for b in blocks],
+                          blocks=blocks, order=order, preserve_order=preserve_order)
+    sections = [sec.encode(enc) for sec in SECTION_TABLE]
+    ranks = enc.ranks
     out_faces, out_vertices, out_order = faces_d, recon, order
     if preserve_order:
-        perm = order.astype("<u4").tobytes()
-        sections[4] = lzma.compress(perm, preset=9)
         inv = np.empty(n, np.int64)
         inv[order] = np.arange(n)
         out_faces, out_vertices, out_order = order[faces_d], recon[inv], np.arange(n)
-    flags = (_FALLBACK if code.fallback else 0) | (_UMBRELLA if basis == "umbrella" else 0) \
-        | (_ORDER if preserve_order else 0)
+    flags = (_FALLBACK if code.fallback else 0) | (_UMBRELLA if basis == "umbrella" else 0)
+    for sec, data in zip(SECTION_TABLE, sections):
+        flags |= sec.flag if data else 0
     check = _check_sums(out_vertices)
     head = _HEAD.pack(MAGIC, FORMAT_VERSION, flags, n, len(f), len(ranks), int(bits), float(keep),
                       step, *check.tolist(), *(len(s) for s in sections))
@@ -261,7 +224,7 @@ def _parse(data: bytes):
     if len(data) < _HEAD.size + 4:
         raise CodecError(f"truncated file: {len(data)} bytes, shorter than the {_HEAD.size + 4}-byte header")
     fields = _HEAD.unpack_from(data, 0)
-    lengths = fields[12:17]
+    lengths = fields[12:12 + len(SECTIONS)]
     expected = _HEAD.size + sum(lengths) + 4
     if len(data) < expected:
         raise CodecError(f"truncated file: {len(data)} bytes, the header announces {expected}")
@@ -310,45 +273,21 @@ def decompress(data: bytes, *, dense_max: int = 1200) -> Mesh:
     """The mesh coded in ``.jxm`` bytes.  Raises :class:`CodecError` naming the
     problem for foreign, truncated, corrupt or unsupported data."""
     h = _parse(data)
-    conn, lab_data, rank_data, coef_data, order_data = h["sections"]
-    n, parts = h["n"], h["parts"]
-    kind = "umbrella" if h["flags"] & _UMBRELLA else "laplacian"
+    dec = SimpleNamespace(n=h["n"], nf=h["nf"], parts=h["parts"], flags=h["flags"], step=h["step"],
+                          kind="umbrella" if h["flags"] & _UMBRELLA else "laplacian", dense_max=dense_max)
     try:
-        if n > max_decisions(len(conn)) and n > len(conn) * _conn.MAX_LZMA_RATIO // 12:
-            raise CodecError(f"the header claims {n} vertices, more than the {len(conn)}-byte "
-                             "connectivity section can describe (corrupt file)")
-        faces = _conn.decode_connectivity(conn, bool(h["flags"] & _FALLBACK), n)
-        if len(faces) != h["nf"] or (faces.size and faces.max() + 1 != n):
-            raise CodecError("connectivity does not match the header's counts (corrupt file)")
-        adjacency = _basis.adjacency_from_faces(faces, n)
-        if parts < 1 or parts > n:
-            raise CodecError("invalid patch count (corrupt file)")
-        labels = (_patches.decode_labels(lab_data, adjacency, parts) if parts > 1
-                  else np.zeros(n, np.int64))
-        if parts > max_decisions(len(rank_data)):
-            raise CodecError(f"{parts} patches cannot be described by a {len(rank_data)}-byte rank section")
-        ranks = decode_ranks(rank_data, parts)
-        sizes = np.bincount(labels, minlength=parts)
-        if any(r > s for r, s in zip(ranks, sizes.tolist())):
-            raise CodecError("a patch rank exceeds its vertex count (corrupt file)")
-        if 3 * sum(ranks) > max_decisions(len(coef_data)):
-            raise CodecError(f"{sum(ranks)} coefficients per axis cannot be described by a "
-                             f"{len(coef_data)}-byte coefficient section (corrupt file)")
-        blocks = decode_coefficients(coef_data, ranks)
-        bases = _patch_bases(adjacency, labels, ranks, kind, dense_max)
-        vertices = _reconstruct(bases, blocks, h["step"], n)
-        if h["flags"] & _ORDER:
-            raw = _conn.lzma_exact(order_data, 4 * n, "vertex order section")
-            perm = np.frombuffer(raw, "<u4").astype(np.int64)
-            if not np.array_equal(np.sort(perm), np.arange(n)):
-                raise CodecError("stored vertex order is not a permutation (corrupt file)")
-            inv = np.empty(n, np.int64)
-            inv[perm] = np.arange(n)
-            faces, vertices = perm[faces], vertices[inv]
+        for sec, section in zip(SECTION_TABLE, h["sections"]):
+            if sec.flag and not h["flags"] & sec.flag:
+                if section:
+                    raise CodecError(f"the {sec.name} section has bytes but the header's flags say it is absent "
+                                     "(corrupt file)")
+                continue
+            sec.decode(dec, section)
     except (_conn.ConnectivityError, RangeCoderError, ValueError) as err:
         if isinstance(err, CodecError):
             raise
         raise CodecError(f"corrupt compressed mesh: {err}") from err
+    vertices, faces, n = dec.vertices, dec.faces, dec.n
     if not np.isfinite(vertices).all():
         raise CodecError("the coefficients decode to non-finite coordinates (corrupt file)")
     tol = 1e-3 * h["step"] * np.sqrt(n) + 1e-9 * np.abs(vertices).max() * np.sqrt(n)

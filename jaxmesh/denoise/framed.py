@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from ..mesh import Mesh
 from ..transforms import from_frame, to_frame, unit_frame
-from .registry import METHODS, Method, diverged
+from .registry import Method, as_method, diverged
 
 __all__ = ["denoise_in_unit_frame"]
 
@@ -21,9 +21,7 @@ def denoise_in_unit_frame(mesh: Mesh, method: str | Method, **params) -> Mesh:
     mapped back by v = v' s + c.  Auxiliary inputs (the face graph) are built
     unless given.  Raises ``FloatingPointError`` when the run diverged
     (non-finite, or a bounding box grown tenfold: :func:`diverged`)."""
-    m = METHODS[method] if isinstance(method, str) else method
-    if not isinstance(m, Method):
-        raise TypeError(f"method must be a registry name or a Method, got {type(method).__name__}")
+    m = as_method(method)
     centre, scale = unit_frame(mesh)
     work = to_frame(mesh, centre, scale)
     aux = {k: v for k, v in m.prepare(mesh).items() if params.get(k) is None}

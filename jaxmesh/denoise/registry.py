@@ -33,7 +33,7 @@ from .guided import guided_normal_filtering
 from .l0 import l0_denoising
 from .normal_filtering import normal_filtering
 
-__all__ = ["Param", "Method", "METHODS", "denoise", "diverged"]
+__all__ = ["Param", "Method", "METHODS", "as_method", "denoise", "diverged"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -76,10 +76,13 @@ class Param:
                              f"got {bad:g}")
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True, eq=False)
 class Method:
     """A registered denoiser: ``method(mesh, **params)`` fills in the defaults,
-    refuses unknown names and calls ``function``."""
+    refuses unknown names and calls ``function``.
+
+    Compared and hashed by identity, so a ``Method`` (registered or not) can be a
+    static argument of ``jax.jit`` (the tuner's configuration holds one)."""
 
     name: str
     function: Callable[..., Mesh]
@@ -254,11 +257,22 @@ METHODS: dict[str, Method] = {
 }
 
 
-def denoise(mesh: Mesh, method: str = "kernel", **params) -> Mesh:
-    """``METHODS[method](mesh, **params)`` with a clear error for an unknown method."""
+def as_method(method: "str | Method") -> Method:
+    """The :class:`Method` named ``method`` in :data:`METHODS`, or ``method`` itself
+    when it is a ``Method`` already (a user's own, registered or not)."""
+    if isinstance(method, Method):
+        return method
+    if not isinstance(method, str):
+        raise TypeError(f"method must be a registry name or a Method, got {type(method).__name__}")
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; choose one of {sorted(METHODS)}")
-    return METHODS[method](mesh, **params)
+    return METHODS[method]
+
+
+def denoise(mesh: Mesh, method: "str | Method" = "kernel", **params) -> Mesh:
+    """``as_method(method)(mesh, **params)``: a registry name (clear error for an
+    unknown one) or a :class:`Method`."""
+    return as_method(method)(mesh, **params)
 
 
 def diverged(before: Mesh, after: Mesh, growth: float = 10.0):

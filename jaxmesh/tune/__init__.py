@@ -19,11 +19,12 @@ from .noise_level import (
 from .objectives import OBJECTIVES, noisy_visual_error_expectation, relative_error, sure_visual_error
 from .space import Coordinate, search_space
 from .batched import tune_batch, tune_shared
+from .options import TuneOptions
 from .tuner import TuneResult, frame, tune, tune_lambda
 from .run import AUTO, DenoiseRun, denoise_with_tuning, split_auto
 
 __all__ = [
-    "tune", "tune_lambda", "tune_batch", "tune_shared", "TuneResult", "frame",
+    "tune", "tune_lambda", "tune_batch", "tune_shared", "TuneOptions", "TuneResult", "frame",
     "AUTO", "DenoiseRun", "denoise_with_tuning", "split_auto",
     "estimate_noise", "noise_sigma", "umbrella_square_row_norms", "NOISE_ESTIMATORS",
     "blind_caveats", "BlindTuningWarning", "LOW_NOISE",

@@ -16,15 +16,15 @@ from ..transforms import unit_frame as frame
 from .noise_level import noise_sigma
 from .objectives import noisy_visual_error_expectation
 from .search import search
-from .space import search_space
+from .options import TuneOptions
 from .tuner import (
     TuneResult,
     _check_pair,
     _Config,
     _loss_function,
     _make_config,
-    _method,
     _named,
+    _prepare,
     _result,
     _sigma_for,
     _tune_one,
@@ -33,11 +33,11 @@ from .tuner import (
 __all__ = ["tune_batch", "tune_shared"]
 
 
-def _aux_for_batch(method: str, noisy, singles) -> dict:
-    """Host-built inputs of ``method`` for a batch: shared when every element has the
-    same connectivity (a mesh with vertices (B, V, 3)); padded batches of different
+def _aux_for_batch(m, noisy, singles) -> dict:
+    """Host-built inputs of the method ``m`` for a batch: shared when every element has
+    the same connectivity (a mesh with vertices (B, V, 3)); padded batches of different
     meshes are refused for methods that need them."""
-    m = _method(method)
+    method = m.name
     if not m.aux:
         return {}
     if not isinstance(noisy, Mesh):
@@ -79,10 +79,8 @@ def _as_batch(meshes):
     return batch.mesh, 0, lambda x: unpad(batch, x), len(batch.num_vertices)
 
 
-def tune_batch(noisy, clean=None, method: str = "kernel", *, iterations: int | None = None,
-               names=None, bounds=None, objective: str = "visual", sigma=None, grid=None,
-               max_steps: int = 20, rtol: float = 1e-2, atol: float = 1e-2, probes: int = 1, key=0,
-               **fixed) -> tuple[TuneResult, list[Mesh]]:
+def tune_batch(noisy, clean=None, method="kernel", *, iterations: int | None = None, sigma=None, key=0,
+               options: TuneOptions | None = None, **keywords) -> tuple[TuneResult, list[Mesh]]:
     """One tuned setting per mesh for a whole batch, in one jitted, vmapped call.
 
     ``noisy`` (and ``clean``): a list of meshes of any sizes (padded with
@@ -92,7 +90,7 @@ def tune_batch(noisy, clean=None, method: str = "kernel", *, iterations: int | N
     (a :class:`TuneResult` whose arrays have a leading B axis and whose ``mesh``
     is None, the list of denoised meshes).  Each element equals :func:`tune` on
     that mesh alone (tested).  One iteration count (tune the count per mesh
-    with :func:`tune`).
+    with :func:`tune`).  ``method``, ``options`` and keywords as :func:`tune`.
     """
     if iterations is not None and not isinstance(iterations, int):
         raise ValueError("tune_batch takes one iteration count")
@@ -102,9 +100,9 @@ def tune_batch(noisy, clean=None, method: str = "kernel", *, iterations: int | N
         clean_stacked, caxes, _, cb = _as_batch(clean)
         if cb != b:
             raise ValueError(f"{b} noisy meshes but {cb} clean ones")
+    meth, options, fixed, key = _prepare(method, options, keywords, key)
     blind = clean is None
-    coords = search_space(method, names, bounds)
-    cfg = _make_config(method, iterations, coords, objective, blind, grid, max_steps, rtol, atol, probes, fixed)
+    cfg = _make_config(meth, iterations, options, blind, fixed)
     singles = unpack(stacked.vertices)
     if blind:
         if sigma is None:
@@ -119,8 +117,7 @@ def tune_batch(noisy, clean=None, method: str = "kernel", *, iterations: int | N
                 _check_pair(m, c)
             except ValueError as err:
                 raise ValueError(f"batch element {k}: {err}") from None
-    key = jax.random.PRNGKey(key) if isinstance(key, int) else key
-    aux = _aux_for_batch(method, noisy, singles)
+    aux = _aux_for_batch(meth, noisy, singles)
     in_axes = (axes, None if clean is None else caxes, None if s is None else 0, None, None)
     run = jax.jit(jax.vmap(lambda n, c, sg, kk, ax: _tune_one(n, c, sg, kk, cfg, ax), in_axes=in_axes))
     out = run(stacked, clean_stacked, s, key, aux)
@@ -134,10 +131,8 @@ def tune_batch(noisy, clean=None, method: str = "kernel", *, iterations: int | N
     return _result(cfg, out, s, None), outputs
 
 
-def tune_shared(noisy, clean=None, method: str = "kernel", *, iterations: int | None = None,
-                names=None, bounds=None, objective: str = "visual", sigma=None, grid=None,
-                max_steps: int = 20, rtol: float = 1e-2, atol: float = 1e-2, probes: int = 1, key=0,
-                **fixed) -> TuneResult:
+def tune_shared(noisy, clean=None, method="kernel", *, iterations: int | None = None, sigma=None, key=0,
+                options: TuneOptions | None = None, **keywords) -> TuneResult:
     """One setting shared by a training set of meshes: minimise the mean over
     the meshes of each one's relative loss (each in its own unit-diagonal
     frame, so meshes of any units count equally).  Use the result on unseen
@@ -146,8 +141,9 @@ def tune_shared(noisy, clean=None, method: str = "kernel", *, iterations: int | 
     if iterations is not None and not isinstance(iterations, int):
         raise ValueError("tune_shared takes one iteration count")
     noisy = list(noisy)
-    if _method(method).aux:
-        raise ValueError(f"tune_shared pads meshes of different sizes, which {method!r} (it needs the "
+    meth, options, fixed, key = _prepare(method, options, keywords, key)
+    if meth.aux:
+        raise ValueError(f"tune_shared pads meshes of different sizes, which {meth.name!r} (it needs the "
                          "host-built face graph of each mesh) does not support; tune each mesh with tune")
     batch = pad_batch(noisy)
     clean_batch = None
@@ -162,12 +158,10 @@ def tune_shared(noisy, clean=None, method: str = "kernel", *, iterations: int | 
                 raise ValueError(f"training mesh {k}: {err}") from None
         clean_batch = pad_batch(clean).mesh
     blind = clean is None
-    coords = search_space(method, names, bounds)
-    cfg = _make_config(method, iterations, coords, objective, blind, grid, max_steps, rtol, atol, probes, fixed)
+    cfg = _make_config(meth, iterations, options, blind, fixed)
     s = None
     if blind:
         s = (jnp.asarray([noise_sigma(m)[0] for m in noisy], batch.mesh.vertices.dtype) if sigma is None
              else jnp.broadcast_to(jnp.asarray(sigma, batch.mesh.vertices.dtype), (len(noisy),)))
-    key = jax.random.PRNGKey(key) if isinstance(key, int) else key
     out = jax.jit(lambda n, c, sg, kk: _shared_search(n, c, sg, kk, cfg))(batch.mesh, clean_batch, s, key)
     return _result(cfg, out, s, None)

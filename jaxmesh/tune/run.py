@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 
-from ..denoise import METHODS, denoise_in_unit_frame, diverged
+from ..denoise import Method, as_method, denoise_in_unit_frame, diverged
 from ..mesh import Mesh
 from .tuner import TuneResult, tune
 
@@ -33,10 +33,11 @@ class DenoiseRun:
     tuning: TuneResult | None
 
 
-def split_auto(method: str, given: dict, tune_all: bool = False) -> tuple[dict, list[str]]:
+def split_auto(method: "str | Method", given: dict, tune_all: bool = False) -> tuple[dict, list[str]]:
     """(fixed values, names to tune) from ``given``, where :data:`AUTO` marks a
     continuous parameter to tune; ``tune_all`` adds every continuous one not given."""
-    m = METHODS[method]
+    m = as_method(method)
+    method = m.name
     names = [k for k, v in given.items() if v == AUTO]
     if tune_all:
         names += [k for k in m.continuous if k not in given]
@@ -50,29 +51,28 @@ def split_auto(method: str, given: dict, tune_all: bool = False) -> tuple[dict, 
     return fixed, names
 
 
-def denoise_with_tuning(mesh: Mesh, method: str, given: dict | None = None, *, tune_all: bool = False,
+def denoise_with_tuning(mesh: Mesh, method: "str | Method", given: dict | None = None, *, tune_all: bool = False,
                         reference: Mesh | None = None, sigma=None, unit_frame: bool = True) -> DenoiseRun:
     """Denoise ``mesh`` with ``method``: parameters in ``given`` fixed, those given as
     :data:`AUTO` (or all continuous ones with ``tune_all``) tuned — against
     ``reference`` if given, else blind (noise ``sigma`` or estimated).  Runs in
     the unit frame (``unit_frame=False``: in the mesh's units, no tuning)."""
-    if method not in METHODS:
-        raise ValueError(f"unknown method {method!r}; choose one of {sorted(METHODS)}")
-    fixed, names = split_auto(method, dict(given or {}), tune_all)
+    m = as_method(method)
+    fixed, names = split_auto(m, dict(given or {}), tune_all)
     if names and not unit_frame:
         raise ValueError("tuning runs in the unit-diagonal frame; it cannot run in the mesh's units")
     tuning = None
     params = dict(fixed)
     if names:
-        tuning = tune(mesh, reference, method, names=names, sigma=sigma, **fixed)
+        tuning = tune(mesh, reference, m, names=names, sigma=sigma, **fixed)
         params.update({k: float(v) for k, v in tuning.params.items()})
-    full = METHODS[method].resolve(**params)
+    full = m.resolve(**params)
     if unit_frame:
-        out = denoise_in_unit_frame(mesh, method, **full)
+        out = denoise_in_unit_frame(mesh, m, **full)
     else:
-        out = METHODS[method](mesh, **full)
+        out = m(mesh, **full)
         if bool(diverged(mesh, out)):
-            raise FloatingPointError(f"{method} diverged (a bounding box grown tenfold) with {fixed}; "
+            raise FloatingPointError(f"{m.name} diverged (a bounding box grown tenfold) with {fixed}; "
                                      "use a larger lam, fewer iterations or a smaller step")
-    shown = {k: v for k, v in full.items() if METHODS[method].params[k].kind != "aux"}
-    return DenoiseRun(out, method, shown, tuple(names), tuning)
+    shown = {k: v for k, v in full.items() if m.params[k].kind != "aux"}
+    return DenoiseRun(out, m.name, shown, tuple(names), tuning)

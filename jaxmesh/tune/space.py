@@ -20,6 +20,8 @@ import math
 import jax
 import jax.numpy as jnp
 
+from ..denoise.registry import as_method
+
 __all__ = ["Coordinate", "search_space"]
 
 
@@ -52,14 +54,12 @@ class Coordinate:
         return jnp.log(t) - jnp.log1p(-t)
 
 
-def search_space(method: str, names=None, bounds: dict | None = None) -> tuple[Coordinate, ...]:
-    """The coordinates of ``method``'s continuous parameters ``names`` (default: all
+def search_space(method, names=None, bounds: dict | None = None) -> tuple[Coordinate, ...]:
+    """The coordinates of ``method``'s (a registry name or a
+    :class:`~jaxmesh.denoise.Method`) continuous parameters ``names`` (default: all
     of them), with the registry's ranges unless ``bounds`` gives ``{name: (lo, hi)}``."""
-    from ..denoise import METHODS
-
-    if method not in METHODS:
-        raise ValueError(f"unknown method {method!r}; choose one of {sorted(METHODS)}")
-    m = METHODS[method]
+    m = as_method(method)
+    method = m.name
     names = m.continuous if names is None else tuple(names)
     if not names:
         raise ValueError(f"method {method!r} has no continuous parameter to tune "

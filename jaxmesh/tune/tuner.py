@@ -42,22 +42,22 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array
 
-from ..denoise import METHODS, denoise_in_unit_frame
+from ..denoise import Method, as_method, denoise_in_unit_frame
 from ..mesh import Mesh
 from ..metrics import visual_error
 from ..transforms import to_frame, unit_frame
 from .objectives import (
-    OBJECTIVES,
     noisy_visual_error_expectation,
     rademacher_probes,
     relative_error,
     sure_visual_error,
 )
 from .noise_level import blind_caveats, noise_sigma
+from .options import TuneOptions
 from .search import search
 from .space import Coordinate, search_space
 
-__all__ = ["TuneResult", "tune", "tune_lambda", "frame"]
+__all__ = ["TuneResult", "TuneOptions", "tune", "tune_lambda", "frame"]
 
 _BAD_LOSS = 1e6          # stands in for a non-finite loss (relative units: 1 = the noisy input)
 _GRID_DEFAULT = {1: 6, 2: 4}   # points per coordinate; 3 for three or more coordinates
@@ -78,34 +78,37 @@ _to_frame = to_frame
 class _Config:
     """Everything static about one tuning problem (hashable: a jit static argument)."""
 
-    method: str
+    method: Method
     statics: tuple[tuple[str, Any], ...]
     coords: tuple[Coordinate, ...]
-    objective: str
+    options: TuneOptions
     blind: bool
-    grid: int
-    max_steps: int
-    rtol: float
-    atol: float
-    probes: int
+
+    objective = property(lambda self: self.options.objective)
+    probes = property(lambda self: self.options.probes)
+    max_steps = property(lambda self: self.options.max_steps)
+    rtol = property(lambda self: self.options.rtol)
+    atol = property(lambda self: self.options.atol)
+
+    @property
+    def grid(self) -> int:
+        g = self.options.grid
+        return g if g is not None else _GRID_DEFAULT.get(len(self.coords), 3)
 
     def run(self, mesh: Mesh, values: dict, aux: dict) -> Mesh:
-        return METHODS[self.method](mesh, **dict(self.statics), **values, **aux)
+        return self.method(mesh, **dict(self.statics), **values, **aux)
 
     def values(self, u) -> dict:
         return {c.name: c.value(u[..., k]) for k, c in enumerate(self.coords)}
 
 
-def _make_config(method, iterations, coords, objective, blind, grid, max_steps, rtol, atol, probes,
-                 fixed) -> _Config:
-    if method not in METHODS:
-        raise ValueError(f"unknown method {method!r}; choose one of {sorted(METHODS)}")
-    if objective not in OBJECTIVES:
-        raise ValueError(f"objective must be one of {OBJECTIVES}, got {objective!r}")
-    if blind and objective != "visual":
+def _make_config(method, iterations, options: TuneOptions, blind: bool, fixed: dict) -> _Config:
+    """The static configuration for one iteration count (``None``: the method's own)."""
+    m = as_method(method)
+    if blind and options.objective != "visual":
         raise ValueError("blind tuning (no clean mesh) estimates the visual error only: "
-                         f"objective={objective!r} needs a clean mesh")
-    m = METHODS[method]
+                         f"objective={options.objective!r} needs a clean mesh")
+    coords = search_space(m, options.names, dict(options.bounds))
     tuned = {c.name for c in coords}
     clash = sorted(tuned & set(fixed))
     if clash:
@@ -113,20 +116,23 @@ def _make_config(method, iterations, coords, objective, blind, grid, max_steps, 
     statics = dict(fixed)
     if iterations is not None:
         if "iterations" not in m.params:
-            raise ValueError(f"method {method!r} has no 'iterations' parameter")
+            raise ValueError(f"method {m.name!r} has no 'iterations' parameter")
         statics["iterations"] = iterations
     full = m.resolve(**statics)    # validates names, choices and integer counts
     statics = {k: v for k, v in full.items() if k not in tuned}
     if any(m.params[k].kind == "aux" and v is not None for k, v in statics.items()):
         raise ValueError("auxiliary inputs (the face graph) are built by the tuner; do not pass them")
     statics = {k: v for k, v in statics.items() if m.params[k].kind != "aux"}
-    n = grid if grid is not None else _GRID_DEFAULT.get(len(coords), 3)
-    if n < 3:
-        raise ValueError(f"grid needs at least 3 points per coordinate, got {n}")
-    if max_steps < 1:
-        raise ValueError(f"max_steps must be >= 1, got {max_steps}")
-    return _Config(method, tuple(sorted(statics.items())), tuple(coords), objective, blind, int(n),
-                   int(max_steps), float(rtol), float(atol), int(probes))
+    return _Config(m, tuple(sorted(statics.items())), tuple(coords), options, blind)
+
+
+def _prepare(method, options: TuneOptions | None, keywords: dict, key):
+    """The one preparation step of every entry point: (Method, options, the method's
+    fixed parameters, PRNG key)."""
+    m = as_method(method)
+    options, fixed = TuneOptions.from_keywords(options, dict(keywords))
+    k = jax.random.PRNGKey(key) if isinstance(key, int) else key
+    return m, options, fixed, k
 
 
 # --------------------------------------------------------------------------- the loss
@@ -200,13 +206,15 @@ class TuneResult(eqx.Module):
     * ``converged``: the optimiser met its tolerance within ``max_steps``;
     * ``history``: accepted iterates {name: (S,)} and ``history_loss`` (S,),
       NaN after the last; ``grid`` / ``grid_loss`` the coarse grid;
-    * ``mesh``: the denoised mesh, in the input's units.
+    * ``mesh``: the denoised mesh, in the input's units;
+    * ``method`` its name and ``denoiser`` the :class:`~jaxmesh.denoise.Method` itself.
 
     Arrays carry a leading batch axis when returned by :func:`tune_batch`.
     """
 
     method: str = eqx.field(static=True)
     fixed: dict = eqx.field(static=True)
+    denoiser: Method = eqx.field(static=True)
     params: dict
     loss: Array
     error: Array
@@ -225,12 +233,12 @@ class TuneResult(eqx.Module):
         parameter learned on a training set is used on unseen meshes."""
         if jnp.ndim(next(iter(self.params.values()))) != 0:
             raise ValueError("apply needs a single result, not a batched one (index it first)")
-        return denoise_in_unit_frame(mesh, self.method, **self.fixed, **self.params)
+        return denoise_in_unit_frame(mesh, self.denoiser, **self.fixed, **self.params)
 
 
 def _result(cfg: _Config, out: dict, sigma, mesh) -> TuneResult:
     return TuneResult(
-        method=cfg.method, fixed=dict(cfg.statics), params=out["params"], loss=out["loss"],
+        method=cfg.method.name, fixed=dict(cfg.statics), denoiser=cfg.method, params=out["params"], loss=out["loss"],
         error=out["error"], sigma=sigma, evaluations=out["evaluations"], converged=out["converged"],
         history=out["history"], history_loss=out["history_loss"], grid=out["grid"],
         grid_loss=out["grid_loss"], mesh=mesh,
@@ -267,48 +275,39 @@ def _sigma_for(noisy: Mesh, sigma, blind: bool):
 _tune_jit = jax.jit(_tune_one, static_argnames="cfg")
 
 
-def _method(name: str):
-    if name not in METHODS:
-        raise ValueError(f"unknown method {name!r}; choose one of {sorted(METHODS)}")
-    return METHODS[name]
-
-
-def tune(noisy: Mesh, clean: Mesh | None = None, method: str = "kernel", *,
-         iterations: int | Sequence[int] | None = None, names: Sequence[str] | None = None,
-         bounds: dict | None = None, objective: str = "visual", sigma=None, grid: int | None = None,
-         max_steps: int = 20, rtol: float = 1e-2, atol: float = 1e-2, probes: int = 1, key=0,
-         **fixed) -> TuneResult:
+def tune(noisy: Mesh, clean: Mesh | None = None, method: "str | Method" = "kernel", *,
+         iterations: int | Sequence[int] | None = None, sigma=None, key=0,
+         options: TuneOptions | None = None, **keywords) -> TuneResult:
     """Tune ``method``'s continuous parameters on ``noisy`` (module docstring).
 
-    * With ``clean`` (same connectivity): minimise ``objective`` ("visual" E,
+    * ``method``: a registry name or a :class:`~jaxmesh.denoise.Method` (your own).
+    * With ``clean`` (same connectivity): minimise the objective ("visual" E,
       "nonlinear" D, or "normal" mean face-normal angle) of the output against it.
     * Without: blind — minimise SURE of E, with noise σ = ``sigma`` (mesh units)
-      or :func:`estimate_noise` of ``noisy``; ``probes`` Hutchinson probes drawn
-      from ``key``.
+      or :func:`estimate_noise` of ``noisy``; Hutchinson probes drawn from ``key``.
     * ``iterations``: an int, or several to choose from (each is tuned, the best
-      loss wins); default the method's own.  ``names``: which continuous
-      parameters to tune (default all; the rest at their defaults or ``fixed``).
-    * ``grid`` points per coordinate (default 6 for one parameter, 4 for two,
-      3 for more); BFGS with ``rtol``/``atol`` in preconditioned units, at
-      most ``max_steps`` steps.
+      loss wins); default the method's own.
+    * ``options``: a :class:`TuneOptions` (which parameters, their ranges, the
+      objective, grid, BFGS tolerances and budget, probes); its fields may also be
+      given as keywords (``names=["lam"]``, ``grid=8``), which override it.  Other
+      keywords are the method's parameters, held fixed.
 
-    Returns a :class:`TuneResult`.  Jit-compiled once per method, iteration
-    count and mesh shape.
+    Returns a :class:`TuneResult`.  Jit-compiled once per method, options,
+    iteration count and mesh shape.
     """
     _check_pair(noisy, clean)
     if noisy.batch_shape:
         raise ValueError("tune takes one mesh; use tune_batch for a batch")
+    m, options, fixed, k = _prepare(method, options, keywords, key)
     blind = clean is None
-    coords = search_space(method, names, bounds)
     counts = [iterations] if iterations is None or isinstance(iterations, int) else list(iterations)
     if not counts:
         raise ValueError("iterations: give at least one count")
+    configs = [_make_config(m, it, options, blind, fixed) for it in counts]   # every check before any work
     s = _sigma_for(noisy, sigma, blind)
-    k = jax.random.PRNGKey(key) if isinstance(key, int) else key
-    aux = _method(method).prepare(noisy)
+    aux = m.prepare(noisy)
     best = None
-    for it in counts:
-        cfg = _make_config(method, it, coords, objective, blind, grid, max_steps, rtol, atol, probes, fixed)
+    for cfg in configs:
         out = _tune_jit(noisy, clean, s, k, cfg=cfg, aux=aux)
         res = _result(cfg, out, s, noisy.with_vertices(out["vertices"]))
         if best is None or float(res.loss) < float(best.loss):
@@ -318,12 +317,9 @@ def tune(noisy: Mesh, clean: Mesh | None = None, method: str = "kernel", *,
     return best
 
 
-def tune_lambda(noisy: Mesh, clean: Mesh | None = None, method: str = "kernel", **kwargs) -> TuneResult:
+def tune_lambda(noisy: Mesh, clean: Mesh | None = None, method: "str | Method" = "kernel",
+                **keywords) -> TuneResult:
     """:func:`tune` of the kernel flow's λ alone (the thesis's one parameter);
     for another method, of its first continuous parameter."""
-    if method not in METHODS:
-        raise ValueError(f"unknown method {method!r}; choose one of {sorted(METHODS)}")
-    first = METHODS[method].continuous[:1]
-    return tune(noisy, clean, method, names=kwargs.pop("names", first), **kwargs)
-
-
+    m = as_method(method)
+    return tune(noisy, clean, m, names=keywords.pop("names", m.continuous[:1]), **keywords)
