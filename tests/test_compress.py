@@ -14,6 +14,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+import trimesh
 
 import jaxmesh
 from jaxmesh.compress import basis as B
@@ -151,7 +152,7 @@ def test_connectivity_costs_under_three_bits_per_vertex_on_spot(spot):
 def test_connectivity_corrupt_block_raises():
     v, f = torus_arrays(12, 8)
     code = K.encode_connectivity(f, len(v))
-    with pytest.raises(K.ConnectivityError):
+    with pytest.raises(K.ConnectivityError, match="ended early"):
         K.decode_connectivity(code.data[: len(code.data) - 6], False)
 
 
@@ -460,11 +461,25 @@ def test_corrupt_section_with_a_valid_checksum_is_caught(spot_code):
     start_coef = C._HEAD.size + sum(lengths[:3])
     body = bytearray(data[:-4])
     body[start_coef + lengths[3] // 2] ^= 0x01
-    with pytest.raises(C.CodecError):
+    with pytest.raises(C.CodecError, match="coefficient section"):
         jaxmesh.compress.decompress(_recrc(bytes(body)))
     body = bytearray(data[:-4])
     body[C._HEAD.size + 20] ^= 0x40  # inside the connectivity section
-    with pytest.raises(C.CodecError):
+    with pytest.raises(C.CodecError, match="corrupt compressed mesh: .*corrupt block"):
+        jaxmesh.compress.decompress(_recrc(bytes(body)))
+
+
+def test_a_section_the_flags_say_is_absent_is_refused():
+    """The section table decodes a flagged section only when its flag is set; bytes in
+    an unflagged one are a corrupt file, not silently ignored."""
+    b = trimesh.creation.box().subdivide()
+    data = jaxmesh.compress.compress(jaxmesh.Mesh.from_arrays(b.vertices, b.faces), preserve_order=True).data
+    assert [sec.name for sec in C.SECTION_TABLE] == list(C.SECTIONS)
+    body = bytearray(data[:-4])
+    flags = struct.unpack_from("<H", body, 10)[0]
+    assert flags & 4
+    struct.pack_into("<H", body, 10, flags & ~4)
+    with pytest.raises(C.CodecError, match="order section has bytes but the header's flags say it is absent"):
         jaxmesh.compress.decompress(_recrc(bytes(body)))
 
 

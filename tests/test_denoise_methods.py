@@ -3,7 +3,6 @@ differences, degenerate input, and the registry's argument checking."""
 
 import warnings
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np

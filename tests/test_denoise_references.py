@@ -1,7 +1,6 @@
 """Each baseline against an independent implementation: scipy sparse matrices
 and plain numpy loops over vertices and faces, written from the papers."""
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest

@@ -64,7 +64,7 @@ def test_mst_errors_and_graph_mst():
 
 def test_tsallis_entropy_formula():
     assert tsallis_entropy(12.0, 16) == pytest.approx(2 * (12 / 4 - 1))
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="empty point set"):
         tsallis_entropy(1.0, 0)
 
 
@@ -279,8 +279,9 @@ def test_topological_attacks(spot):
     assert 0.02 * spot.num_vertices <= removed <= 0.05 * spot.num_vertices
     assert cr.num_faces < spot.num_faces
     np.testing.assert_array_equal(attacks.crop(spot, 0.02, seed=1).vertices, cr.vertices)
-    for bad in (lambda: attacks.simplify(spot, 0), lambda: attacks.crop(spot, 1.0)):
-        with pytest.raises(ValueError):
+    for bad, why in ((lambda: attacks.simplify(spot, 0), r"keep must be in \(0, 1\]"),
+                     (lambda: attacks.crop(spot, 1.0), r"fraction must be in \[0, 1\)")):
+        with pytest.raises(ValueError, match=why):
             bad()
 
 

@@ -7,7 +7,6 @@ import networkx as nx
 import numpy as np
 import pytest
 import scipy.linalg
-import scipy.sparse.csgraph as csgraph
 import trimesh
 
 import jaxmesh

@@ -82,19 +82,20 @@ def test_two_parameters_and_the_iteration_count(spot_pair):
 
 @pytest.mark.parametrize("blind", [False, True])
 def test_tuning_loss_gradients_match_finite_differences(blind):
+    from jaxmesh.tune import TuneOptions
     from jaxmesh.tune.tuner import _loss_function, _make_config
 
     clean = sphere(1)
     noisy = jaxmesh.add_noise(clean, 0.2, 3)
     nn, cn = in_frame(noisy, clean)
-    cfg = _make_config("kernel", 2, search_space("kernel"), "visual", blind, None, 5, 1e-3, 1e-3, 1, {})
+    cfg = _make_config("kernel", 2, TuneOptions(max_steps=5, rtol=1e-3, atol=1e-3), blind, {})
     sigma = 0.2 * float(jaxmesh.mean_edge_length(nn)) if blind else None
     loss = jax.jit(_loss_function(cfg, nn, None if blind else cn, sigma, jax.random.PRNGKey(0), {}))
     modes = ("fwd",) if blind else ("fwd", "rev")    # the tuner differentiates forward
     check_grads(lambda u: loss(u[None])[0], (jnp.array([0.3]),), order=1, modes=modes, atol=1e-6, rtol=1e-4)
     if blind:
         return
-    cfg2 = _make_config("taubin", 2, search_space("taubin"), "visual", blind, None, 5, 1e-3, 1e-3, 1, {})
+    cfg2 = _make_config("taubin", 2, TuneOptions(max_steps=5, rtol=1e-3, atol=1e-3), blind, {})
     loss2 = jax.jit(_loss_function(cfg2, nn, None if blind else cn, sigma, jax.random.PRNGKey(0), {}))
     check_grads(lambda u: loss2(u[None])[0], (jnp.array([0.2, -0.4]),), order=1, modes=("fwd",),
                 atol=1e-6, rtol=1e-4)
@@ -219,6 +220,38 @@ def test_blind_tuning_with_the_true_sigma_lands_near_the_supervised_optimum(spot
     assert true <= 1.05 * float(sup.error)
     assert float(blind.error) == pytest.approx(true, rel=0.1)   # its own SURE estimate is close
     assert float(blind.sigma) == pytest.approx(sigma)
+
+
+def test_options_object_keywords_and_a_users_own_method():
+    """TuneOptions and the same fields as keywords are one configuration; keywords
+    override the object; an unregistered Method (here Laplacian smoothing under
+    another name) tunes like its registered twin and its result applies it."""
+    import dataclasses
+
+    from jaxmesh.tune import TuneOptions
+
+    clean = sphere(1)
+    noisy = jaxmesh.add_noise(clean, 0.2, 3)
+    opts = TuneOptions(grid=4, max_steps=6)
+    a = tune(noisy, clean, "laplacian", iterations=3, options=opts)
+    b = tune(noisy, clean, "laplacian", iterations=3, grid=4, max_steps=6)
+    assert float(a.params["lam"]) == float(b.params["lam"])
+    c = tune(noisy, clean, "laplacian", iterations=3, options=TuneOptions(grid=9, max_steps=6), grid=4)
+    assert float(c.params["lam"]) == float(a.params["lam"])      # the keyword won
+    mine = dataclasses.replace(METHODS["laplacian"], name="my_umbrella_flow")
+    assert "my_umbrella_flow" not in METHODS
+    d = tune(noisy, clean, mine, iterations=3, options=opts)
+    assert d.method == "my_umbrella_flow" and d.denoiser is mine
+    assert float(d.params["lam"]) == pytest.approx(float(a.params["lam"]), rel=1e-12)
+    np.testing.assert_allclose(d.apply(noisy).vertices, a.apply(noisy).vertices, atol=1e-12)
+    assert hash(opts) == hash(TuneOptions(grid=4, max_steps=6))   # a jit static argument
+    assert TuneOptions(bounds={"lam": (0.1, 1)}).bounds == (("lam", (0.1, 1.0)),)
+    for bad, why in [(dict(grid=2), "at least 3"), (dict(max_steps=0), "max_steps"), (dict(probes=0), "probes"),
+                     (dict(rtol=0.0), "rtol"), (dict(objective="psnr"), "objective")]:
+        with pytest.raises(ValueError, match=why):
+            TuneOptions(**bad)
+    with pytest.raises(TypeError, match="TuneOptions"):
+        tune(noisy, clean, options={"grid": 4})
 
 
 def test_bad_arguments_are_refused(spot_pair):
