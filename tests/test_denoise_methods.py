@@ -201,3 +201,18 @@ def test_registry_rejects_bad_arguments(tetra):
         for p in method.continuous:
             lo, hi = method.params[p].bounds
             assert lo < method.params[p].default < hi, (name, p)
+
+
+def test_renamed_methods_keep_their_old_names_with_a_deprecation_warning(tetra):
+    from jaxmesh.denoise import DEPRECATED_NAMES, as_method
+
+    assert DEPRECATED_NAMES == {"laplacian": "umbrella_flow", "anisotropic": "cauchy_diffusion"}
+    for old, new in DEPRECATED_NAMES.items():
+        assert old not in METHODS and new in METHODS
+        with pytest.warns(DeprecationWarning, match=f"'{old}' is deprecated .* use '{new}'"):
+            assert as_method(old) is METHODS[new]
+    with pytest.warns(DeprecationWarning, match="use 'umbrella_flow'"):
+        old = denoise(tetra, "laplacian", iterations=2).vertices
+    np.testing.assert_array_equal(old, denoise(tetra, "umbrella_flow", iterations=2).vertices)
+    with pytest.raises(TypeError, match="registry name or a Method"):
+        as_method(3)

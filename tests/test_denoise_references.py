@@ -55,7 +55,7 @@ def test_laplacian_and_taubin_match_scipy_umbrella_iteration(noisy):
         lap = lap + 0.4 * (k @ lap)
         tau = tau + 0.5 * (k @ tau)
         tau = tau - 0.53 * (k @ tau)
-    np.testing.assert_allclose(METHODS["laplacian"](noisy, lam=0.4, iterations=4).vertices, lap, atol=1e-12)
+    np.testing.assert_allclose(METHODS["umbrella_flow"](noisy, lam=0.4, iterations=4).vertices, lap, atol=1e-12)
     np.testing.assert_allclose(METHODS["taubin"](noisy, iterations=4).vertices, tau, atol=1e-12)
 
 
@@ -108,7 +108,7 @@ def test_zhang_ben_hamza_paper_variant_matches_numpy(noisy):
             new[i] += dt * sum((g[i] + g[j]) / np.sqrt(d[i]) * (x[j] / np.sqrt(d[j]) - x[i] / np.sqrt(d[i]))
                                for j in nb[i])
         x = new
-    out = METHODS["anisotropic"](noisy, dt=dt, c=c_rel, iterations=2, variant="paper").vertices
+    out = METHODS["cauchy_diffusion"](noisy, dt=dt, c=c_rel, iterations=2, variant="paper").vertices
     np.testing.assert_allclose(out, x, atol=1e-12)
 
 
@@ -249,12 +249,12 @@ def test_boundary_curve_smoothing_matches_numpy_on_an_open_grid():
     x = v.copy()
     for _ in range(3):
         x = x + 0.5 * np.array([x[sorted(nbrs[i])].mean(axis=0) - x[i] for i in range(len(x))])
-    out = METHODS["laplacian"](mesh, lam=0.5, iterations=3, boundary="curve").vertices
+    out = METHODS["umbrella_flow"](mesh, lam=0.5, iterations=3, boundary="curve").vertices
     np.testing.assert_allclose(out, x, atol=1e-12)
     # a boundary vertex never moves off the boundary polygon's plane (z = 0 here), and the free
     # mode differs from the curve mode only on the boundary
-    free = np.asarray(METHODS["laplacian"](mesh, lam=0.5, iterations=1).vertices)
-    curve = np.asarray(METHODS["laplacian"](mesh, lam=0.5, iterations=1, boundary="curve").vertices)
+    free = np.asarray(METHODS["umbrella_flow"](mesh, lam=0.5, iterations=1).vertices)
+    curve = np.asarray(METHODS["umbrella_flow"](mesh, lam=0.5, iterations=1, boundary="curve").vertices)
     interior = np.array([i not in on_boundary for i in range(len(v))])
     np.testing.assert_allclose(free[interior], curve[interior], atol=1e-12)
     assert np.abs(free[~interior] - curve[~interior]).max() > 1e-3

@@ -68,7 +68,7 @@ SCALARS = ("cotangent_weights", "laplace_beltrami_weights", "areas")
 VECTORS = ("umbrella", "laplace_beltrami", "normals")
 
 
-@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(random_meshes(), rigid_motions())
 def test_operator_properties(mesh, motion):
     x = mesh.vertices

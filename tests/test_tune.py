@@ -74,8 +74,8 @@ def test_two_parameters_and_the_iteration_count(spot_pair):
     assert float(res.loss) < float(default)
     for name, c in zip(("lam", "mu"), search_space("taubin")):
         assert c.lo <= float(res.params[name]) <= c.hi
-    pick = tune(noisy, clean, "laplacian", iterations=(1, 20))
-    single = {k: float(tune(noisy, clean, "laplacian", iterations=k).loss) for k in (1, 20)}
+    pick = tune(noisy, clean, "umbrella_flow", iterations=(1, 20))
+    single = {k: float(tune(noisy, clean, "umbrella_flow", iterations=k).loss) for k in (1, 20)}
     assert pick.fixed["iterations"] == min(single, key=single.get)
     assert float(pick.loss) == pytest.approx(min(single.values()), rel=1e-12)
 
@@ -233,12 +233,12 @@ def test_options_object_keywords_and_a_users_own_method():
     clean = sphere(1)
     noisy = jaxmesh.add_noise(clean, 0.2, 3)
     opts = TuneOptions(grid=4, max_steps=6)
-    a = tune(noisy, clean, "laplacian", iterations=3, options=opts)
-    b = tune(noisy, clean, "laplacian", iterations=3, grid=4, max_steps=6)
+    a = tune(noisy, clean, "umbrella_flow", iterations=3, options=opts)
+    b = tune(noisy, clean, "umbrella_flow", iterations=3, grid=4, max_steps=6)
     assert float(a.params["lam"]) == float(b.params["lam"])
-    c = tune(noisy, clean, "laplacian", iterations=3, options=TuneOptions(grid=9, max_steps=6), grid=4)
+    c = tune(noisy, clean, "umbrella_flow", iterations=3, options=TuneOptions(grid=9, max_steps=6), grid=4)
     assert float(c.params["lam"]) == float(a.params["lam"])      # the keyword won
-    mine = dataclasses.replace(METHODS["laplacian"], name="my_umbrella_flow")
+    mine = dataclasses.replace(METHODS["umbrella_flow"], name="my_umbrella_flow")
     assert "my_umbrella_flow" not in METHODS
     d = tune(noisy, clean, mine, iterations=3, options=opts)
     assert d.method == "my_umbrella_flow" and d.denoiser is mine

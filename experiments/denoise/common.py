@@ -45,9 +45,9 @@ def noisy_copy(clean: jaxmesh.Mesh, sigma: float, seed: int = 0) -> jaxmesh.Mesh
 # evaluated in one batched call (one batch element per grid point).
 GRIDS = {
     "kernel": ([{"iterations": k} for k in (2, 5, 10)], {"lam": LOG(-1.3, 1.3, 14)}),
-    "anisotropic": ([{"iterations": k} for k in (5, 10, 20)],
+    "cauchy_diffusion": ([{"iterations": k} for k in (5, 10, 20)],
                     {"dt": (0.1, 0.25, 0.5), "c": LOG(-1, 1, 5)}),
-    "laplacian": ([{"iterations": k, "boundary": b} for k in (1, 2, 3, 5, 10, 20) for b in BOUNDARY],
+    "umbrella_flow": ([{"iterations": k, "boundary": b} for k in (1, 2, 3, 5, 10, 20) for b in BOUNDARY],
                   {"lam": LOG(-1.7, 0, 10)}),
     "hc": ([{"iterations": k, "boundary": b} for k in (1, 2, 5, 10, 20, 40) for b in BOUNDARY],
            {"alpha": (0.0, 0.1, 0.2, 0.3), "beta": (0.3, 0.5, 0.7, 0.9)}),

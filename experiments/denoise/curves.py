@@ -23,9 +23,9 @@ from common import LOG, METHODS, RESULTS, SIGMAS, jnp, load, noisy_copy, np, vis
 ITERATION_METHODS = {
     "kernel (λ=0.4)": ("kernel", {"lam": 0.4}),
     "kernel, paper eq.7 (λ=0.4)": ("kernel", {"lam": 0.4, "variant": "paper"}),
-    "laplacian (λ=0.5)": ("laplacian", {"lam": 0.5}),
+    "umbrella flow (λ=0.5)": ("umbrella_flow", {"lam": 0.5}),
     "taubin (0.5, -0.53)": ("taubin", {}),
-    "anisotropic (dt=0.25, c=1)": ("anisotropic", {}),
+    "cauchy diffusion (dt=0.25, c=1)": ("cauchy_diffusion", {}),
     "hc (0.1, 0.5)": ("hc", {}),
 }
 ITERATIONS = (1, 2, 3, 5, 8, 12, 16, 20, 25, 30)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import contextlib
 import time
 
-from ..denoise import METHODS
+from ..denoise import as_method
 from ..io import load, save
 from ..tune import choose_denoiser, denoise_with_tuning
 from ._common import CLIError, check_output, io_arguments, load_input, positional_output, with_caveats
@@ -69,8 +69,7 @@ def run(args) -> int:
     label, mesh, reference, out = _load_pair(args)
     start = time.perf_counter()
     tuning = args.tune or "auto" in given.values()
-    total = given.get("iterations", METHODS[args.method].defaults().get("iterations", 1)) \
-        if args.method in METHODS else 1
+    total = given.get("iterations", as_method(args.method).defaults().get("iterations", 1))
     with progress_bar(args.method, total) if not tuning else contextlib.nullcontext():
         result, caveats = with_caveats(denoise_with_tuning, mesh, args.method, given, tune_all=args.tune,
                                        reference=reference, sigma=args.noise_sigma, unit_frame=not args.raw_units)

@@ -27,11 +27,11 @@ from .kernel_flow import (
 from .kde import kernel_density
 from .laplacian import hc_smoothing, laplacian_smoothing, taubin_smoothing
 from .normal_filtering import FaceRings, face_rings, filter_normals, normal_filtering, ring_sum
-from .registry import METHODS, Method, Param, as_method, denoise, diverged
+from .registry import DEPRECATED_NAMES, METHODS, Method, Param, as_method, denoise, diverged
 from .framed import denoise_in_unit_frame
 
 __all__ = [
-    "METHODS", "Method", "Param", "as_method", "denoise", "diverged", "progress", "denoise_in_unit_frame",
+    "METHODS", "DEPRECATED_NAMES", "Method", "Param", "as_method", "denoise", "diverged", "progress", "denoise_in_unit_frame",
     "VARIANTS", "kernel_diffusion", "kernel_step", "kernel_weights", "neighborhood_covariances",
     "kernel_density",
     "anisotropic_diffusion", "laplacian_smoothing", "taubin_smoothing", "hc_smoothing", "cotangent_flow",

@@ -33,7 +33,7 @@ from .guided import guided_normal_filtering
 from .l0 import l0_denoising
 from .normal_filtering import normal_filtering
 
-__all__ = ["Param", "Method", "METHODS", "as_method", "denoise", "diverged"]
+__all__ = ["Param", "Method", "METHODS", "DEPRECATED_NAMES", "as_method", "denoise", "diverged"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -183,17 +183,17 @@ METHODS: dict[str, Method] = {
             "safeguard": Param(True, "choice", "cap the random-walk step (never diverges)",
                                choices=(True, False)),
         }, "multivariate kernel diffusion (the thesis, ch.2)", "Tarmissi 2010, ch.2 eq.6-12"),
-        Method("anisotropic", anisotropic_diffusion, {
+        Method("cauchy_diffusion", anisotropic_diffusion, {
             "dt": Param(0.25, "continuous", "step size", (0.01, 0.5), True),
             "c": Param(1.0, "continuous", "Cauchy scale, relative to the mean |∇x|", (0.05, 20.0), True),
             "iterations": _it(10),
             "variant": Param("random_walk", "choice", "update rule", choices=("random_walk", "paper")),
         }, "vertex-based anisotropic diffusion, Cauchy weight", "Zhang & Ben Hamza 2006"),
-        Method("laplacian", laplacian_smoothing, {
+        Method("umbrella_flow", laplacian_smoothing, {
             "lam": Param(0.5, "continuous", "umbrella step", (0.01, 1.0), True, domain=(0.0, 1.0), closed="(]"),
             "iterations": _it(10),
             "boundary": _BOUNDARY,
-        }, "Laplacian (umbrella) flow", "Taubin 1995"),
+        }, "umbrella flow x <- x + λ K x (Laplacian smoothing)", "Taubin 1995"),
         Method("taubin", taubin_smoothing, {
             "lam": Param(0.5, "continuous", "shrinking step λ ∈ (0, 1]", (0.01, 1.0), True, domain=(0.0, 1.0),
                          closed="(]"),
@@ -257,13 +257,24 @@ METHODS: dict[str, Method] = {
 }
 
 
+#: old registry names, accepted with a ``DeprecationWarning`` until 0.3 (see CHANGELOG.md):
+#: "laplacian" also named the operator L = D − A, "anisotropic" also described "geometric"
+DEPRECATED_NAMES = {"laplacian": "umbrella_flow", "anisotropic": "cauchy_diffusion"}
+
+
 def as_method(method: "str | Method") -> Method:
     """The :class:`Method` named ``method`` in :data:`METHODS`, or ``method`` itself
-    when it is a ``Method`` already (a user's own, registered or not)."""
+    when it is a ``Method`` already (a user's own, registered or not).  A name in
+    :data:`DEPRECATED_NAMES` gives its new method, with a ``DeprecationWarning``."""
     if isinstance(method, Method):
         return method
     if not isinstance(method, str):
         raise TypeError(f"method must be a registry name or a Method, got {type(method).__name__}")
+    if method in DEPRECATED_NAMES:
+        new = DEPRECATED_NAMES[method]
+        warnings.warn(f"method name {method!r} is deprecated (removed in 0.3): use {new!r}",
+                      DeprecationWarning, stacklevel=3)
+        method = new
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; choose one of {sorted(METHODS)}")
     return METHODS[method]
