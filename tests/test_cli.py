@@ -173,6 +173,7 @@ def test_denoise_lam_auto_blind(capsys, tmp_path, small_pair):
     assert "tuned lam (blind, noise sigma" in text and "estimated)" in text
 
 
+@pytest.mark.filterwarnings("ignore:1 isolated vertices:jaxmesh.mesh.MeshWarning")  # small_pair's far vertex
 def test_denoise_lam_auto_supervised(capsys, tmp_path, small_pair):
     from jaxmesh.tune import tune
 
@@ -228,6 +229,7 @@ def test_denoise_auto_is_the_default_and_says_what_it_chose(capsys, tmp_path):
     assert "--lam needs a named method" in capsys.readouterr().err
 
 
+@pytest.mark.filterwarnings("ignore:1 isolated vertices:jaxmesh.mesh.MeshWarning")  # small_pair's far vertex
 def test_lam_auto_then_the_reported_lam_writes_the_same_file(capsys, tmp_path, small_pair):
     """One frame for the CLI and the tuner: on a mesh with an isolated vertex far
     away (where the bounding boxes of all and of used vertices differ), --lam auto

@@ -52,5 +52,9 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help(sys.stderr)
         return 2
     jax.config.update("jax_enable_x64", True)  # the one place: files are read and written unrounded
-    warnings.showwarning = _show_warning
-    return run_command(args._run, args)
+    # warnings are one stderr line each, whatever filters the caller (a test run with
+    # -W error, an embedding program) installed; both are restored on return
+    with warnings.catch_warnings():
+        warnings.simplefilter("default")
+        warnings.showwarning = _show_warning
+        return run_command(args._run, args)

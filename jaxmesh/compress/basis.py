@@ -41,6 +41,8 @@ import scipy.linalg
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from ..graph import adjacency_from_faces
+
 __all__ = [
     "SpectralBasis",
     "KINDS",
@@ -81,16 +83,6 @@ def fixed_vectors(m: int, k: int, salt: int = 0) -> np.ndarray:
         z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
         z = z ^ (z >> np.uint64(31))
     return (z >> np.uint64(11)).astype(np.float64) * 2.0 ** -52 - 1.0
-
-
-def adjacency_from_faces(faces: np.ndarray, num_vertices: int) -> sp.csr_matrix:
-    """Symmetric 0/1 vertex adjacency of a triangle list."""
-    f = np.asarray(faces, np.int64)
-    a = np.concatenate([f[:, 0], f[:, 1], f[:, 2]])
-    b = np.concatenate([f[:, 1], f[:, 2], f[:, 0]])
-    adj = sp.csr_matrix((np.ones(2 * len(a)), (np.r_[a, b], np.r_[b, a])), shape=(num_vertices,) * 2)
-    adj.data[:] = 1.0
-    return adj
 
 
 def _operator(adjacency: sp.csr_matrix, kind: str) -> tuple[sp.csr_matrix, np.ndarray, float]:

@@ -21,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from ..graph import metis_labels
 from .rangecoder import Model, RangeDecoder, RangeEncoder
 
 __all__ = ["partition", "encode_labels", "decode_labels", "patch_adjacency"]
@@ -28,8 +29,6 @@ __all__ = ["partition", "encode_labels", "decode_labels", "patch_adjacency"]
 
 def partition(adjacency: sp.csr_matrix, patch_size: int) -> np.ndarray:
     """Labels (V,) of ~V / patch_size METIS parts, renumbered by first appearance."""
-    from ..hash.partition import metis_labels
-
     n = adjacency.shape[0]
     parts = max(1, int(round(n / max(int(patch_size), 1))))
     if parts == 1:

@@ -10,18 +10,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..graph import metis_labels, submesh
 from ..mesh import Mesh
 
 __all__ = ["metis_labels", "metis_partition", "submesh"]
-
-
-def metis_labels(xadj: np.ndarray, adjncy: np.ndarray, parts: int, seed: int = 0) -> np.ndarray:
-    """METIS's k-way labels (V,) for a graph in CSR form (``xadj``, ``adjncy``), fixed seed."""
-    import pymetis
-
-    adjacency = pymetis.CSRAdjacency(np.asarray(xadj, np.int32), np.asarray(adjncy, np.int32))
-    _, labels = pymetis.part_graph(int(parts), adjacency=adjacency, options=pymetis.Options(seed=int(seed)))
-    return np.asarray(labels, np.int64)
 
 
 def metis_partition(mesh: Mesh, parts: int, seed: int = 0) -> np.ndarray:
@@ -48,17 +40,3 @@ def metis_partition(mesh: Mesh, parts: int, seed: int = 0) -> np.ndarray:
         raise ValueError(f"METIS left {missing.size} of {parts} parts empty "
                          f"({m} vertices); use fewer parts")
     return labels
-
-
-def submesh(vertices: np.ndarray, faces: np.ndarray, keep: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The faces whose three vertices all satisfy ``keep`` (bool, V), re-indexed.
-
-    Returns ``(vertices_k, faces_k, index)`` with ``vertices_k = vertices[index]``;
-    vertices of ``keep`` that lie on no kept face are left out.
-    """
-    inside = keep[faces].all(axis=1)
-    fk = faces[inside]
-    index = np.unique(fk)
-    remap = np.full(len(vertices), -1, np.int64)
-    remap[index] = np.arange(len(index))
-    return vertices[index], remap[fk], index
