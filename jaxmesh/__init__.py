@@ -30,7 +30,7 @@ from .transforms import normalize
 __version__ = "0.1.0"
 
 #: subpackages imported on first attribute access (PEP 562)
-_LAZY = ("attacks", "batch", "compress", "data", "denoise", "hash", "metrics", "operators", "sparse",
+_LAZY = ("batch", "compress", "data", "denoise", "hash", "metrics", "operators", "sparse",
          "stats", "tune")
 
 
@@ -63,7 +63,6 @@ __all__ = [
     "vertex_normals",
     "vertex_areas",
     "bounding_box_diagonal",
-    "attacks",
     "batch",
     "compress",
     "data",

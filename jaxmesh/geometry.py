@@ -133,6 +133,23 @@ def cotangents_of_corners(p, xp=jnp):
     return xp.where(ok, xp.sum(e1 * e2, axis=-1) / xp.where(ok, cross, 1), 0)
 
 
+def hat_gradients(p, xp=jnp):
+    """P1 finite elements on triangles given by their corners p (..., 3, 3): the area
+    A_f and the gradients of the three hat functions,
+    ∇ψ_k = (n × e_k) / (2 A_f), e_k the edge opposite corner k, n the unit normal.
+    A zero-area face gets area 0 and gradients 0.  ``xp`` is ``jax.numpy``
+    (default; gradient-safe norm) or ``numpy`` (host code: the same rule, in
+    float64).  Returns (A (...,), ∇ψ (..., 3, 3))."""
+    e = xp.roll(p, -2, axis=-2) - xp.roll(p, -1, axis=-2)
+    c = xp.cross(p[..., 1, :] - p[..., 0, :], p[..., 2, :] - p[..., 0, :])
+    twice = safe_norm(c) if xp is jnp else xp.sqrt(xp.sum(c * c, axis=-1))
+    ok = twice > 0
+    safe = xp.where(ok, twice, 1)
+    n = xp.where(ok[..., None], c / safe[..., None], 0)
+    grad = xp.where(ok[..., None, None], xp.cross(n[..., None, :], e) / safe[..., None, None], 0)
+    return 0.5 * twice, grad
+
+
 def vertex_normals(
     mesh: Mesh, weighting: Literal["uniform", "angle", "area"] = "area"
 ) -> Float[Array, "*batch V 3"]:

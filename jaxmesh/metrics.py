@@ -188,14 +188,25 @@ def _point_surface_distance(points: np.ndarray, vertices: np.ndarray, faces: np.
     return out
 
 
-def sample_surface(vertices: np.ndarray, faces: np.ndarray, count: int, rng: np.random.Generator) -> np.ndarray:
-    """``count`` points uniformly distributed on the surface (area-weighted faces,
-    uniform barycentric coordinates)."""
+def sample_surface(vertices: np.ndarray, faces: np.ndarray, count: int, rng: np.random.Generator, *,
+                   systematic: bool = False, area: np.ndarray | None = None) -> np.ndarray:
+    """``count`` points distributed uniformly on the surface: faces drawn with
+    probability ∝ area, then a uniform point in each, v = (1 − √r₁) a + √r₁ (1 − r₂) b
+    + √r₁ r₂ c.  Faces are drawn independently, or, with ``systematic``, by
+    systematic sampling of the area CDF (one uniform offset; lower variance: what
+    the robust hash uses).  ``area``: face weights to use instead of the faces'
+    areas (the robust hash samples its normalised surface with the original
+    areas)."""
     tri = vertices[faces]
-    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    if area is None:
+        area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
     if area.sum() <= 0:
         return tri[:, 0][rng.integers(0, len(faces), count)]
-    f = rng.choice(len(faces), size=count, p=area / area.sum())
+    if systematic:
+        cdf = np.cumsum(area) / area.sum()
+        f = np.minimum(np.searchsorted(cdf, (np.arange(count) + rng.random()) / count), len(faces) - 1)
+    else:
+        f = rng.choice(len(faces), size=count, p=area / area.sum())
     r1, r2 = rng.random(count), rng.random(count)
     s = np.sqrt(r1)
     w = np.stack([1 - s, s * (1 - r2), s * r2], axis=1)

@@ -25,6 +25,7 @@ __all__ = [
     "laplacian",
     "normalized_laplacian",
     "umbrella",
+    "taubin_pair",
     "vertex_gradient",
     "vertex_laplace",
     "gradient_magnitude",
@@ -157,3 +158,12 @@ def cotangent_laplacian(mesh: Mesh, x: Float[Array, "*batch V d"]) -> Float[Arra
     w = 0.5 * cotangent_weights(mesh)[..., mesh.edge_of, None]
     diff = x[..., mesh.dst, :] - x[..., mesh.src, :]
     return segment_sum_rows(w * diff, mesh.src, mesh.num_vertices)
+
+
+def taubin_pair(x, k, lam, mu):
+    """One Taubin λ|μ pair (Taubin 1995): x ← x + λ k(x), then x ← x + μ k(x), with
+    ``k`` the smoothing operator as a function (the umbrella K x by segment sums, or
+    a scipy matrix product on the host).  The one definition that Taubin smoothing
+    and the robust hash's pre-smoothing share."""
+    x = x + lam * k(x)
+    return x + mu * k(x)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import jaxmesh
-from jaxmesh import attacks
+from jaxmesh.hash import attacks
 from jaxmesh.cli import main
 from jaxmesh.hash import (THRESHOLDS, cosine_similarity, euclidean_mst, euclidean_mst_length,
                           graph_mst_length, laplace_beltrami_eigenvalues, laplace_beltrami_host,
@@ -201,9 +201,9 @@ def test_affine_normalization_whitens_and_cancels_affine_maps(spot):
     v, f = np.asarray(spot.vertices), np.asarray(spot.faces)
     x, area = affine_normalize(v, f)
     # the whitened surface has centroid 0 and identity covariance: check by dense sampling
-    from jaxmesh.hash.robust import _sample
+    from jaxmesh.metrics import sample_surface
 
-    pts = _sample(x, f, area, 200_000, 0)
+    pts = sample_surface(x, f, 200_000, np.random.default_rng(0), systematic=True, area=area)
     np.testing.assert_allclose(pts.mean(0), 0, atol=0.01)
     np.testing.assert_allclose(np.cov(pts.T), np.eye(3), atol=0.02)
     # a similarity map changes the whitened shape by a rotation only: same radii
@@ -324,3 +324,26 @@ def test_host_laplace_beltrami_uses_the_one_degenerate_face_rule():
     ref = laplace_beltrami_matrix(jaxmesh.Mesh.from_arrays(v, f, warn=False)).toarray()
     assert np.abs(host).max() < 100
     np.testing.assert_allclose(host, ref, rtol=1e-12, atol=1e-12)
+
+
+def test_the_old_attacks_module_is_a_deprecated_alias():
+    import importlib
+    import sys
+
+    sys.modules.pop("jaxmesh.attacks", None)
+    with pytest.warns(DeprecationWarning, match="moved to jaxmesh.hash.attacks"):
+        old = importlib.import_module("jaxmesh.attacks")
+    assert old.simplify is attacks.simplify and sorted(old.__all__) == sorted(attacks.__all__)
+
+
+def test_systematic_surface_sampling_follows_the_areas():
+    """The robust hash's sampler (metrics.sample_surface, systematic): each face gets
+    its expected count count·A_f/ΣA to within one point, and every point is on its face."""
+    from jaxmesh.metrics import sample_surface
+
+    v = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [3, 0, 0], [3, 3, 0]])
+    f = np.array([[0, 1, 2], [1, 3, 4]])                  # areas 0.5 and 3
+    pts = sample_surface(v, f, 7000, np.random.default_rng(1), systematic=True)
+    in_first = (pts[:, 0] + pts[:, 1] <= 1 + 1e-12) & (pts[:, 0] <= 1 + 1e-12)
+    assert abs(in_first.sum() - 1000) <= 1
+    assert np.all(pts[:, 2] == 0)

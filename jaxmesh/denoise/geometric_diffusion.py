@@ -26,7 +26,8 @@ import jax.numpy as jnp
 from jaxtyping import Array, Float
 
 from .._private import det_adjugate_3x3, safe_divide, safe_normalize, segment_sum_scalars
-from ..geometry import face_areas, face_corners, face_normals, mean_edge_length, vertex_normals
+from ..geometry import face_corners, face_normals, hat_gradients, mean_edge_length, vertex_normals
+from ..metrics import cauchy_weight
 from ..mesh import Mesh
 from ._loop import iterate
 from .curvature import implicit_diffusion_step
@@ -78,13 +79,8 @@ def anisotropic_stiffness(mesh: Mesh, rho) -> Float[Array, "*batch E"]:
     G's scale ρ = ``rho`` (an absolute curvature, 1/length)."""
     k1, k2, w1, w2 = face_curvatures(mesh)
     rho = jnp.asarray(rho, mesh.dtype)[..., None]
-    g1 = 1 / (1 + (k1 / rho) ** 2)
-    g2 = 1 / (1 + (k2 / rho) ** 2)
-    p = face_corners(mesh)
-    n = face_normals(mesh)
-    area = face_areas(mesh)
-    e = jnp.roll(p, -2, axis=-2) - jnp.roll(p, -1, axis=-2)          # opposite corner k
-    grad = safe_divide(jnp.cross(n[..., None, :], e), 2 * area[..., None, None])  # ∇φ_k
+    g1, g2 = cauchy_weight(k1, rho), cauchy_weight(k2, rho)          # G(κ) of the module docstring
+    area, grad = hat_gradients(face_corners(mesh))                     # A_T, ∇φ_k
     g_w1 = _dot(grad, w1[..., None, :])                                # (*b, F, 3)
     g_w2 = _dot(grad, w2[..., None, :])
     # edge opposite corner m joins corners m+1 and m+2

@@ -32,7 +32,7 @@ import jax.numpy as jnp
 
 from .._private import safe_divide, segment_sum_rows, segment_sum_scalars
 from ..mesh import Mesh
-from ..operators import umbrella
+from ..operators import taubin_pair, umbrella
 from ._loop import iterate
 
 BOUNDARY_MODES = ("free", "curve")
@@ -79,11 +79,7 @@ def taubin_smoothing(mesh: Mesh, lam=0.5, mu=-0.53, iterations: int = 10, bounda
     lam = jnp.asarray(lam, mesh.dtype)[..., None, None]
     mu = jnp.asarray(mu, mesh.dtype)[..., None, None]
 
-    def step(x):
-        x = x + lam * k(x)
-        return x + mu * k(x)
-
-    return mesh.with_vertices(iterate(step, mesh.vertices, iterations))
+    return mesh.with_vertices(iterate(lambda x: taubin_pair(x, k, lam, mu), mesh.vertices, iterations))
 
 
 def hc_smoothing(mesh: Mesh, alpha=0.1, beta=0.5, iterations: int = 10, boundary: str = "free") -> Mesh:

@@ -45,10 +45,11 @@ models of one kind of object (two head busts) sit closest.
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
 import scipy.special
 
 from ..mesh import Mesh
+from ..metrics import sample_surface
+from ..operators import taubin_pair
 from ..sparse import umbrella_matrix
 from .result import MeshHash
 
@@ -60,16 +61,6 @@ HALF_DISTANCE = 0.041
 THRESHOLD = 0.5
 
 _SHELL_WIDTH = 0.3
-
-
-def _taubin_host(v: np.ndarray, k: sp.csr_matrix, iterations: int,
-                 lam: float = 0.5, mu: float = -0.53) -> np.ndarray:
-    """x <- x + λ K x, then x <- x + μ K x, ``iterations`` times (K the umbrella matrix)."""
-    x = v.copy()
-    for _ in range(int(iterations)):
-        x = x + lam * (k @ x)
-        x = x + mu * (k @ x)
-    return x
 
 
 def affine_normalize(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -92,18 +83,6 @@ def affine_normalize(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarra
     floor = 1e-12 * w.max()
     inv_sqrt = np.where(w > floor, 1.0 / np.sqrt(np.maximum(w, floor)), 0.0)
     return (v - centre) @ (u * inv_sqrt) @ u.T, area
-
-
-def _sample(x: np.ndarray, f: np.ndarray, area: np.ndarray, count: int, seed: int) -> np.ndarray:
-    """``count`` area-uniform points: systematic sampling of the area CDF, then a
-    uniform point in each chosen triangle."""
-    rng = np.random.default_rng(seed)
-    cdf = np.cumsum(area) / area.sum()
-    chosen = np.minimum(np.searchsorted(cdf, (np.arange(count) + rng.random()) / count), len(f) - 1)
-    s = np.sqrt(rng.random(count))
-    t = rng.random(count)
-    w = np.stack([1 - s, s * (1 - t), s * t], axis=1)
-    return np.einsum("nk,nkd->nd", w, x[f[chosen]])
 
 
 def shell_energies(points: np.ndarray, degree: int, radii: np.ndarray) -> np.ndarray:
@@ -136,8 +115,11 @@ def robust_hash(mesh: Mesh, *, samples: int = 40000, degree: int = 6, shells: in
             raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
     v = np.asarray(mesh.vertices, np.float64)
     f = np.asarray(mesh.faces, np.int64)
-    x, area = affine_normalize(_taubin_host(v, umbrella_matrix(mesh), smoothing), f)
-    points = _sample(x, f, area, int(samples), int(seed))
+    k = umbrella_matrix(mesh)
+    for _ in range(int(smoothing)):
+        v = taubin_pair(v, lambda y: k @ y, 0.5, -0.53)   # on the host, in float64
+    x, area = affine_normalize(v, f)
+    points = sample_surface(x, f, int(samples), np.random.default_rng(int(seed)), systematic=True, area=area)
     radii = np.linspace(0.3, 2.7, int(shells))
     feats = shell_energies(points, int(degree), radii)
     return MeshHash(

@@ -23,6 +23,7 @@ import scipy.sparse.linalg as spla
 from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 
+from ..geometry import hat_gradients
 from ..mesh import Mesh
 from .. import sparse as jsparse
 from ._graph import single
@@ -63,18 +64,6 @@ def graph_distances(mesh: Mesh, sources, graph: str = "edges", k: int = 8) -> np
     return csgraph.dijkstra(_graph(mesh, graph, k), directed=False, indices=np.asarray(sources))
 
 
-def _face_gradients(v: np.ndarray, f: np.ndarray):
-    """Per face: area A_f and ∇ψ_k = (n × e_k) / (2 A_f) for its three hat functions."""
-    p = v[f]                                              # (F, 3 corners, 3)
-    e = np.roll(p, -2, axis=1) - np.roll(p, -1, axis=1)   # edge opposite corner k
-    cross = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
-    twice = np.linalg.norm(cross, axis=1)
-    ok = twice > 0
-    n = np.where(ok[:, None], cross / np.where(ok, twice, 1)[:, None], 0)
-    grad = np.cross(n[:, None, :], e) / np.where(ok, twice, 1)[:, None, None]
-    return 0.5 * twice, np.where(ok[:, None, None], grad, 0)
-
-
 def _spd_factor(a: sp.spmatrix):
     """Sparse LU of a symmetric positive definite matrix in SuperLU's symmetric
     mode (minimum-degree ordering on A + A^T, no pivoting): about 1.6x fewer
@@ -98,7 +87,7 @@ def heat_geodesics(mesh: Mesh, sources, t: float | None = None, block: int = 25)
     sources = np.atleast_1d(np.asarray(sources))
     v, f = np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces)
     n = len(v)
-    area, grad = _face_gradients(v, f)
+    area, grad = hat_gradients(v[f], np)
     mass = np.bincount(f.ravel(), np.repeat(area / 3, 3), n)
     mass = np.where(mass > 0, mass, mass[mass > 0].mean() if (mass > 0).any() else 1.0)
     e = np.asarray(mesh.edges)

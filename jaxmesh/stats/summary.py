@@ -9,6 +9,7 @@ from typing import Callable
 import numpy as np
 
 from ..mesh import Mesh
+from ._graph import graph_view
 from .clustering import clustering, clustering_by_degree, thesis_clustering
 from .degree import (assortativity_function, average_degree, degree_assortativity, degree_distribution,
                      neighbor_connectivity)
@@ -36,13 +37,14 @@ def mesh_statistics(mesh: Mesh, sources: int = 200, seed: int = 0, knn: int = 8,
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
             raise ValueError(f"{name} must be a positive int, got {value!r}")
     say("degree, assortativity and clustering")
-    ks, pk = degree_distribution(mesh)
-    knn_v = neighbor_connectivity(mesh)
-    kk, knn_k = assortativity_function(mesh, knn_v)
-    c = clustering(mesh)
-    ct = thesis_clustering(mesh)
-    ck, c_k = clustering_by_degree(mesh, c)
-    _, ct_k = clustering_by_degree(mesh, ct)
+    graph = graph_view(mesh)      # the host edge graph, once for every statistic below
+    ks, pk = degree_distribution(graph)
+    knn_v = neighbor_connectivity(graph)
+    kk, knn_k = assortativity_function(graph, knn_v)
+    c = clustering(graph)
+    ct = thesis_clustering(graph)
+    ck, c_k = clustering_by_degree(graph, c)
+    _, ct_k = clustering_by_degree(graph, ct)
     src = sample_sources(mesh, sources, seed)
     dist = {}
     for g in geodesics:
@@ -51,14 +53,14 @@ def mesh_statistics(mesh: Mesh, sources: int = 200, seed: int = 0, knn: int = 8,
         dist[g] = _finite(d, src)
     say("Laplacian spectra")
     spec = {kind: laplacian_spectrum(mesh, kind, spectrum_k) for kind in ("combinatorial", "normalized")}
-    d = np.asarray(mesh.degree)
+    d = graph.degree
     connected = d > 0
     differ = connected & ~np.isclose(c, np.nan_to_num(ct, nan=-1))
     summary = {
         "vertices": mesh.num_vertices,
-        "average_degree": average_degree(mesh),
+        "average_degree": average_degree(graph),
         "degree_6_share": float(np.mean(d == 6)),
-        "assortativity": degree_assortativity(mesh),
+        "assortativity": degree_assortativity(graph),
         "mean_clustering": float(np.mean(c)),
         "mean_thesis_clustering": float(np.nanmean(ct)),
         "clustering_formulas_differ_at": int(differ.sum()),
