@@ -45,7 +45,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import itertools
-from typing import Any, NamedTuple, Sequence
+from typing import Any, Sequence
 
 import jax
 import jax.numpy as jnp
@@ -59,7 +59,8 @@ from .noise_level import blind_caveats, noise_sigma
 __all__ = ["Candidate", "CANDIDATES", "AutoResult", "edge_tilt", "choose_denoiser"]
 
 
-class Candidate(NamedTuple):
+@dataclasses.dataclass(frozen=True)
+class Candidate:
     """One (method, parameters) pair that :func:`choose_denoiser` may pick."""
 
     method: str
