@@ -254,6 +254,24 @@ def test_options_object_keywords_and_a_users_own_method():
         tune(noisy, clean, options={"grid": 4})
 
 
+def test_tuning_again_on_the_same_shapes_does_not_recompile():
+    """The static configuration (method, options, fixed parameters) is hashable and
+    equal for equal settings, so a second mesh of the same shapes, or the same options
+    given as an object instead of keywords, reuses the compiled tuner: a retrace here
+    would recompile BFGS for every mesh of a dataset."""
+    from jaxmesh.tune import TuneOptions, tuner
+
+    clean = sphere(1)
+    a, b = jaxmesh.add_noise(clean, 0.2, 1), jaxmesh.add_noise(clean, 0.2, 2)
+    tune(a, clean, iterations=2, max_steps=3)
+    compiled = tuner._tune_jit._cache_size()
+    tune(b, clean, iterations=2, max_steps=3)
+    tune(a, clean, iterations=2, options=TuneOptions(max_steps=3))
+    assert tuner._tune_jit._cache_size() == compiled
+    tune(a, clean, iterations=2, max_steps=4)            # a different configuration does compile
+    assert tuner._tune_jit._cache_size() == compiled + 1
+
+
 def test_bad_arguments_are_refused(spot_pair):
     clean, noisy = spot_pair
     with pytest.raises(ValueError, match="unknown method"):
