@@ -96,33 +96,40 @@ def _slow_if(heavy, name, *rest):
     return pytest.param(name, *rest, marks=[pytest.mark.slow] if name in heavy else [])
 
 
-def _continuous_cases():
-    """The tuner differentiates the continuous parameters in forward mode: that mode, for
-    every parameter, is checked by default; both modes run with -m slow."""
-    return [pytest.param(n, p, m, marks=[pytest.mark.slow] if m == ("fwd", "rev") or n == "geometric" else [])
-            for n in NAMES for p in METHODS[n].continuous for m in (("fwd",), ("fwd", "rev"))]
+@pytest.mark.parametrize("mode", ["fwd", pytest.param("rev", marks=pytest.mark.slow)])
+@pytest.mark.parametrize("name", NAMES)
+def test_gradients_in_positions_and_parameters(small_sphere, name, mode):
+    """Derivatives against finite differences, jointly in the positions and every
+    continuous parameter: one compiled function per method, so one compile for the
+    evaluations and one for the derivative.  Forward mode by default: the tuner
+    differentiates the parameters, and SURE the positions, in forward mode; reverse
+    mode with -m slow (and the kernel flow's in test_kernel_flow.py).  Guided filtering chooses patches by an
+    argmin: on the jittered sphere near ties flip under finite-difference steps, so its
+    positions are checked on a box (test_feature_denoise.py), its parameters here."""
+    method = METHODS[name]
+    params = method.continuous
+    w = jax.random.normal(jax.random.PRNGKey(4), small_sphere.vertices.shape)
+    f = compiled(method, small_sphere, iterations=1)   # the loop body is what is differentiated
+    theta = tuple(jnp.asarray(float(method.defaults()[p])) for p in params)
+    if name == "guided_normal":
+        loss = jax.jit(lambda *t: jnp.sum(w * f(small_sphere.vertices, **dict(zip(params, t)))))
+        args = theta
+    else:
+        loss = jax.jit(lambda x, *t: jnp.sum(w * f(x, **dict(zip(params, t)))))
+        args = (small_sphere.vertices, *theta)
+    check_grads(loss, args, order=1, modes=(mode,), atol=1e-5, rtol=1e-4, eps=FD_EPS.get(name))
 
 
-@pytest.mark.parametrize("name,param,modes", _continuous_cases())
-def test_gradient_in_each_continuous_parameter(small_sphere, name, param, modes):
+@pytest.mark.slow   # each parameter alone, in each mode: the joint check above, taken apart
+@pytest.mark.parametrize("name,param", [(n, p) for n in NAMES for p in METHODS[n].continuous])
+@pytest.mark.parametrize("mode", ["fwd", "rev"])
+def test_gradient_in_each_continuous_parameter(small_sphere, name, param, mode):
     method = METHODS[name]
     w = jax.random.normal(jax.random.PRNGKey(2), small_sphere.vertices.shape)
     base = method.defaults()[param]
-    f = compiled(method, small_sphere, iterations=1)   # the loop body is what is differentiated
+    f = compiled(method, small_sphere, iterations=1)
     loss = jax.jit(lambda p: jnp.sum(w * f(small_sphere.vertices, **{param: p})))
-    check_grads(loss, (jnp.asarray(float(base)),), order=1, modes=modes, atol=1e-5, rtol=1e-4)
-
-
-# guided filtering chooses patches by an argmin: on the jittered sphere near ties flip under
-# finite-difference steps; its position gradient is checked on a box, where the choice is
-# stable (test_feature_denoise.py)
-@pytest.mark.parametrize("name", [n for n in NAMES if n != "guided_normal"])
-def test_gradient_in_the_positions(small_sphere, name):
-    w = jax.random.normal(jax.random.PRNGKey(4), small_sphere.vertices.shape)
-    f = compiled(METHODS[name], small_sphere, iterations=1)
-    loss = jax.jit(lambda x: jnp.sum(w * f(x)))
-    check_grads(loss, (small_sphere.vertices,), order=1, modes=("rev",), atol=1e-5, rtol=1e-4,
-                eps=FD_EPS.get(name))
+    check_grads(loss, (jnp.asarray(float(base)),), order=1, modes=(mode,), atol=1e-5, rtol=1e-4)
 
 
 @pytest.mark.parametrize("name", [_slow_if(("geometric", "cotangent_implicit"), n) for n in
