@@ -38,7 +38,9 @@ threshold is :data:`THRESHOLD` = ½.  That threshold is fitted on those meshes
 Limits.  Models that differ by an affine map are the same to this hash
 (a cube and a box; a sphere and an ellipsoid).  Attacks that move much of the
 surface's area (cropping a large piece; 0.1ℓ̄-scale noise is fine, noise that
-Taubin smoothing cannot remove is not) change the shell energies; and two
+Taubin smoothing cannot remove is not) change the shell energies, and so does
+smoothing a coarse mesh with sharp features (a bent cone of 1.5k faces after 5
+umbrella steps: ρ = 0.17, measured in tests/test_hash.py's note); and two
 models of one kind of object (two head busts) sit closest.
 """
 
