@@ -273,6 +273,12 @@ def test_tuning_again_on_the_same_shapes_does_not_recompile():
     assert tuner._tune_jit._cache_size() == compiled
     tune(a, clean, iterations=2, max_steps=4)            # a different configuration does compile
     assert tuner._tune_jit._cache_size() == compiled + 1
+    from jaxmesh.tune import batched
+
+    tune_batch([a, b], [clean, clean], iterations=2, max_steps=3)
+    compiled = batched._tune_many._cache_size()
+    tune_batch([b, a], [clean, clean], iterations=2, max_steps=3)   # a second batch of the same shapes
+    assert batched._tune_many._cache_size() == compiled
 
 
 def test_bad_arguments_are_refused(spot_pair):

@@ -4,6 +4,7 @@ or one setting shared by a training set (:func:`tune_shared`)."""
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import jax
 import jax.numpy as jnp
@@ -67,16 +68,37 @@ def _shared_search(noisy: Mesh, clean: Mesh, sigma, key, cfg: _Config):  # metho
 
 
 def _as_batch(meshes):
-    """(stacked Mesh, vmap in_axes, unpack(vertices) -> list[Mesh], count)."""
+    """(stacked Mesh, whether it is one mesh with vertices (B, V, 3) (topology shared),
+    unpack(vertices) -> list[Mesh], count)."""
     if isinstance(meshes, Mesh):
         if len(meshes.batch_shape) != 1:
             raise ValueError(f"a batched mesh needs vertices (B, V, 3), got {meshes.vertices.shape}")
-        axes = jax.tree.map(lambda _: None, meshes)
-        axes = dataclasses.replace(axes, vertices=0)
         b = meshes.batch_shape[0]
-        return meshes, axes, lambda x: [meshes.with_vertices(x[i]) for i in range(b)], b
+        return meshes, True, lambda x: [meshes.with_vertices(x[i]) for i in range(b)], b
     batch = meshes if isinstance(meshes, PaddedBatch) else pad_batch(list(meshes))
-    return batch.mesh, 0, lambda x: unpad(batch, x), len(batch.num_vertices)
+    return batch.mesh, False, lambda x: unpad(batch, x), len(batch.num_vertices)
+
+
+def _axes(mesh, shared_topology: bool):
+    """vmap axes of a batch: only the vertices for one mesh with vertices (B, V, 3),
+    every leaf for a padded batch of different meshes."""
+    if mesh is None:
+        return None
+    if not shared_topology:
+        return 0
+    return dataclasses.replace(jax.tree.map(lambda _: None, mesh), vertices=0)
+
+
+@functools.partial(jax.jit, static_argnames=("cfg", "noisy_shared", "clean_shared"))
+def _tune_many(noisy, clean, sigma, key, aux, cfg, noisy_shared, clean_shared):
+    """:func:`_tune_one` vmapped over a batch; compiled once per configuration and shapes
+    (module level, so a second batch of the same shapes does not recompile)."""
+    in_axes = (_axes(noisy, noisy_shared), _axes(clean, clean_shared), None if sigma is None else 0, None, None)
+    return jax.vmap(lambda n, c, sg, kk, ax: _tune_one(n, c, sg, kk, cfg, ax), in_axes=in_axes)(
+        noisy, clean, sigma, key, aux)
+
+
+_shared_jit = jax.jit(_shared_search, static_argnames="cfg")
 
 
 def tune_batch(noisy, clean=None, method="kernel", *, iterations: int | None = None, sigma=None, key=0,
@@ -94,10 +116,10 @@ def tune_batch(noisy, clean=None, method="kernel", *, iterations: int | None = N
     """
     if iterations is not None and not isinstance(iterations, int):
         raise ValueError("tune_batch takes one iteration count")
-    stacked, axes, unpack, b = _as_batch(noisy)
-    clean_stacked = None
+    stacked, shared, unpack, b = _as_batch(noisy)
+    clean_stacked, clean_shared = None, False
     if clean is not None:
-        clean_stacked, caxes, _, cb = _as_batch(clean)
+        clean_stacked, clean_shared, _, cb = _as_batch(clean)
         if cb != b:
             raise ValueError(f"{b} noisy meshes but {cb} clean ones")
     meth, options, fixed, key = _prepare(method, options, keywords, key)
@@ -118,9 +140,8 @@ def tune_batch(noisy, clean=None, method="kernel", *, iterations: int | None = N
             except ValueError as err:
                 raise ValueError(f"batch element {k}: {err}") from None
     aux = _aux_for_batch(meth, noisy, singles)
-    in_axes = (axes, None if clean is None else caxes, None if s is None else 0, None, None)
-    run = jax.jit(jax.vmap(lambda n, c, sg, kk, ax: _tune_one(n, c, sg, kk, cfg, ax), in_axes=in_axes))
-    out = run(stacked, clean_stacked, s, key, aux)
+    out = _tune_many(stacked, clean_stacked, s, key, aux, cfg=cfg, noisy_shared=shared,
+                     clean_shared=clean_shared)
 
     outputs = unpack(out["vertices"])
     if clean is not None:   # per unpadded mesh: padding must not count in the 1/2m
@@ -163,5 +184,5 @@ def tune_shared(noisy, clean=None, method="kernel", *, iterations: int | None = 
     if blind:
         s = (jnp.asarray([noise_sigma(m)[0] for m in noisy], batch.mesh.vertices.dtype) if sigma is None
              else jnp.broadcast_to(jnp.asarray(sigma, batch.mesh.vertices.dtype), (len(noisy),)))
-    out = jax.jit(lambda n, c, sg, kk: _shared_search(n, c, sg, kk, cfg))(batch.mesh, clean_batch, s, key)
+    out = _shared_jit(batch.mesh, clean_batch, s, key, cfg=cfg)
     return _result(cfg, out, s, None)
