@@ -2,7 +2,7 @@
 
 Model: y = x + η, x a smooth surface, η per vertex either isotropic
 N(0, σ² I) (thesis ch.2 eq.1) or N(0, σ²) along the normal; both give a normal
-component of standard deviation σ, and both estimators below read the normal
+component of standard deviation σ, and every estimator below reads the normal
 component only.
 
 **"quadric"**.  For every vertex i, in a frame with origin y_i
@@ -19,19 +19,40 @@ over the vertices with at least 8 neighbours in the 2-ring and a
 well-conditioned fit; the MAD keeps creases and corners (where no quadric
 fits) from counting.
 
-**"umbrella"** (the default).  The umbrella
+**"umbrella"**.  The umbrella
 operator K = D⁻¹A − I is a high-pass filter; n_i · (K²η)_i has standard
 deviation σ ‖row_i(K²)‖, so σ̂ = 1.4826 · MAD_i(n_i · (K² y)_i / ‖row_i(K²)‖).
 On irregular, detailed meshes K² leaves the surface's own curvature times the
-sampling irregularity in the residual, which reads as noise at low σ.
+sampling irregularity in the residual, which reads as noise at low σ; and the
+MAD is robust only while such vertices are a minority (on the fandisk, half the
+vertices lie on curved or sharp parts: σ̂/σ = 1.68 at 0.02ℓ̄).
 
-Measured (``experiments/denoise/noise_estimate.py``, σ̂/σ on eight shared
-meshes, isotropic noise, seed 0): at 0.1ℓ̄ and 0.3ℓ̄ both are within
-0.97–1.5 (umbrella 0.98–1.30); at 0.02ℓ̄ the vertex-scale geometry of coarse
-meshes reads as noise to any local fit: umbrella 1.0–3.3, quadric 1.1–4.6
-(cow the worst for both).  The quadric fit removes smooth second-order
-surface, but what dominates on these meshes is curvature at the scale of one
-edge, which no local polynomial fits; so "umbrella" stays the default.
+**"flat"**: the flattest patches, after Liu, Tanaka & Okutomi's weak-textured
+patches for images.  With z_i = n_i · (K² y)_i / ‖row_i(K²)‖ as above, take the
+mean of z² over the 2-ring patch of every vertex and the 10% quantile T(y) of
+those patch means: the patches where the surface's own detail adds least.
+For pure noise T scales as σ², but its constant depends on the mesh's
+connectivity (overlapping patches, correlated residuals), so it is calibrated
+on the mesh itself: T₁ is the same statistic of unit noise along the normals
+(4 fixed draws), and σ̂ = √(T(y) / T₁).  Deterministic, and exactly
+equivariant (scale) and invariant (rigid motions).  It reads the noise where
+the surface is smoothest, so a CAD model's flat half counts; it reads ~5% high
+under isotropic noise (calibrated along the normals) and low (0.77) on the
+human at 0.3ℓ̄ along the normals, where the noisy normals tilt the projection.
+
+**"min"** (the default): the smaller of "flat" and "umbrella".  Both count the
+surface's own detail as noise, so each over-reads; the smaller over-reads less.
+
+Measured (``experiments/denoise/noise_estimate.py`` →
+``experiments/results/denoise/noise_estimate.md``, σ̂/σ on eight shared meshes,
+both noise models, seed 0): at 0.1ℓ̄ and 0.3ℓ̄ all within 0.77–1.52 ("min"
+0.77–1.26); at 0.02ℓ̄, mean |log σ̂/σ| is 0.39 ("min"), 0.39 ("flat"),
+0.50 ("umbrella"), 0.65 ("quadric"): fandisk 1.20, spot 1.19, human 1.33,
+bunny 1.52, fertility 1.45, maxplanck 1.82, cow 2.88 ("min").  The same
+column on the *clean* meshes explains the rest: the cow reads 0.053ℓ̄ of its
+own vertex-scale roughness, maxplanck 0.027ℓ̄, fertility 0.017ℓ̄ (scans), so
+noise of 0.02ℓ̄ on them is √(1 + (0.053/0.02)²) ≈ 2.8 times less than what
+the mesh itself carries at that scale, for any estimator that reads roughness.
 """
 
 from __future__ import annotations
@@ -49,15 +70,15 @@ from ..operators import umbrella
 __all__ = ["estimate_noise", "noise_sigma", "blind_caveats", "BlindTuningWarning", "LOW_NOISE",
            "umbrella_square_row_norms", "NOISE_ESTIMATORS"]
 
-#: below this σ̂ (in mean edge lengths) the umbrella estimator reads a surface's own detail
-#: as noise: 0.063 ℓ̄ on the clean cow, 1.0–3.3× the true σ at 0.02 ℓ̄ (README)
+#: below this σ̂ (in mean edge lengths) the estimators read a surface's own detail
+#: as noise: 0.053 ℓ̄ on the clean cow, 1.19–2.88× the true σ at 0.02 ℓ̄ (module docstring)
 LOW_NOISE = 0.1
 
 
 class BlindTuningWarning(UserWarning):
     """Blind tuning or choice cannot vouch for its result (see the message)."""
 
-NOISE_ESTIMATORS = ("quadric", "umbrella")
+NOISE_ESTIMATORS = ("min", "flat", "quadric", "umbrella")
 
 _MAD_TO_SIGMA = 1.482602218505602  # 1 / Φ⁻¹(3/4)
 
@@ -73,10 +94,39 @@ def umbrella_square_row_norms(mesh: Mesh) -> np.ndarray:
 
 def _umbrella_residuals(mesh: Mesh) -> np.ndarray:
     g = umbrella_square_row_norms(mesh)
-    y = mesh.vertices
-    s = jnp.sum(umbrella(mesh, umbrella(mesh, y)) * vertex_normals(mesh, "area"), axis=-1)
+    s = _normal_high_pass(mesh, mesh.vertices)
     ok = g > 0
-    return np.asarray(s, dtype=np.float64)[ok] / g[ok]
+    return s[ok] / g[ok]
+
+
+def _normal_high_pass(mesh: Mesh, u) -> np.ndarray:
+    """n_i · (K² u)_i, n the noisy mesh's area-weighted vertex normals (host array)."""
+    s = jnp.sum(umbrella(mesh, umbrella(mesh, jnp.asarray(u, mesh.dtype))) * vertex_normals(mesh, "area"), axis=-1)
+    return np.asarray(s, dtype=np.float64)
+
+
+def _patch_statistic(z2: np.ndarray, patches: sp.csr_matrix, ok: np.ndarray, quantile: float) -> float:
+    """The ``quantile`` of the patch means of z² (vertices with ``ok`` only)."""
+    count = patches @ ok.astype(np.float64)
+    mean = (patches @ np.where(ok, z2, 0.0))[count > 0] / count[count > 0]
+    return float(np.quantile(mean, quantile)) if mean.size else 0.0
+
+
+def _flat_patch_sigma(mesh: Mesh, quantile: float = 0.1, draws: int = 4) -> float:
+    """σ̂ from the flattest patches, calibrated by simulation (module docstring)."""
+    g = umbrella_square_row_norms(mesh)
+    ok = g > 0
+    if not ok.any():
+        return 0.0
+    gs = np.where(ok, g, 1.0)
+    ring = _two_ring(mesh) + sp.identity(mesh.num_vertices, format="csr")
+    ring.data[:] = 1
+    observed = _patch_statistic((_normal_high_pass(mesh, mesh.vertices) / gs) ** 2, ring, ok, quantile)
+    n = np.asarray(vertex_normals(mesh, "area"), dtype=np.float64)
+    rng = np.random.default_rng(0)
+    unit = np.mean([_patch_statistic((_normal_high_pass(mesh, rng.standard_normal((len(g), 1)) * n) / gs) ** 2,
+                                     ring, ok, quantile) for _ in range(draws)])
+    return float(np.sqrt(observed / unit)) if unit > 0 else 0.0
 
 
 def _two_ring(mesh: Mesh) -> sp.csr_matrix:
@@ -130,14 +180,20 @@ def _one_ring_sum(mesh: Mesh, values: np.ndarray) -> np.ndarray:
     return values + adjacency_matrix(mesh) @ values
 
 
-def estimate_noise(mesh: Mesh, method: str = "umbrella") -> float:
+def estimate_noise(mesh: Mesh, method: str = "min") -> float:
     """σ̂ of the module docstring, in the mesh's units (equivariant: scaling the
     mesh by s scales σ̂ by s; translation and rotation leave it unchanged).
-    ``method``: "umbrella" (default) or "quadric"."""
+    ``method``: "min" (default), "flat", "umbrella" or "quadric"."""
     if mesh.batch_shape:
         raise ValueError("estimate_noise takes one mesh; loop over a batch")
     if method not in NOISE_ESTIMATORS:
         raise ValueError(f"method must be one of {NOISE_ESTIMATORS}, got {method!r}")
+    if method == "min":
+        return min(estimate_noise(mesh, "flat"), estimate_noise(mesh, "umbrella"))
+    if method == "flat":
+        if not (umbrella_square_row_norms(mesh) > 0).any():
+            raise ValueError("estimate_noise: the mesh has no vertex with neighbours")
+        return _flat_patch_sigma(mesh)
     r = _quadric_residuals(mesh) if method == "quadric" else _umbrella_residuals(mesh)
     if r.size == 0:
         if method == "quadric":   # too small or too irregular for a quadric: fall back
