@@ -57,3 +57,20 @@ def det_adjugate_3x3(h: Float[Array, "... 3 3"]):
     ], -2)
     det = a * co[..., 0, 0] + b * co[..., 1, 0] + c * co[..., 2, 0]
     return det, co
+
+
+#: stream tags of :func:`library_key`, one per use of randomness inside the library
+PROBE_STREAM, RECORRUPTION_STREAM = 1, 2
+
+
+def library_key(key, stream: int):
+    """The key the library draws its own randomness from (SURE probes,
+    recorruptions), given the user's ``key`` (an int seed or a key): folded with
+    ``stream`` so it never reproduces noise drawn with the same seed.  Without
+    it the draws coincided: ``jax.random`` is prefix-consistent, so
+    ``normal(PRNGKey(0), (2, V, 1))[0]`` *is* ``normal(PRNGKey(0), (V, 1))``
+    (``add_noise(..., 0, along_normals=True)``'s draw), and
+    ``rademacher(PRNGKey(0), s) == -sign(normal(PRNGKey(0), s))``: an estimator's
+    own noise equal to the noise it estimates is no estimate."""
+    k = jax.random.PRNGKey(key) if isinstance(key, int) else key
+    return jax.random.fold_in(k, stream)

@@ -213,6 +213,7 @@ def test_denoise_tune_every_continuous_parameter(capsys, tmp_path):
 def test_denoise_auto_is_the_default_and_says_what_it_chose(capsys, tmp_path):
     import jaxmesh
     from jaxmesh.tune import CANDIDATES, choose_denoiser
+    from jaxmesh.tune.auto import TAUBIN_LAMS, TAUBIN_PASS_BANDS
 
     noisy, clean, out = (str(tmp_path / n) for n in ("noisy.ply", "clean.ply", "out.ply"))
     assert main(["noise", "--sample", "spot", noisy, "--sigma", "0.3", "--along-normals"]) == 0
@@ -222,7 +223,8 @@ def test_denoise_auto_is_the_default_and_says_what_it_chose(capsys, tmp_path):
     s = json.loads(capsys.readouterr().out)
     want = choose_denoiser(jaxmesh.load(noisy))
     assert s["method"] == want.method and s["params"] == want.params
-    assert s["auto"]["improved"] and len(s["auto"]["candidates"]) == len(CANDIDATES)
+    assert s["auto"]["improved"] and len(s["auto"]["candidates"]) == len(CANDIDATES) + len(TAUBIN_LAMS) * len(
+        TAUBIN_PASS_BANDS)
     assert s["after"]["normal_angle_deg"] < 0.5 * s["before"]["normal_angle_deg"]
     np.testing.assert_allclose(jaxmesh.load(out).vertices, want.mesh.vertices, atol=1e-12)
     assert main(["denoise", noisy, str(tmp_path / "x.ply"), "--lam", "0.3"]) == 1

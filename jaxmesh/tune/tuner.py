@@ -42,6 +42,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array
 
+from .._private import PROBE_STREAM, library_key
 from ..denoise import Method, as_method, denoise_in_unit_frame
 from ..mesh import Mesh
 from ..metrics import visual_error
@@ -131,8 +132,7 @@ def _prepare(method, options: TuneOptions | None, keywords: dict, key):
     fixed parameters, PRNG key)."""
     m = as_method(method)
     options, fixed = TuneOptions.from_keywords(options, dict(keywords))
-    k = jax.random.PRNGKey(key) if isinstance(key, int) else key
-    return m, options, fixed, k
+    return m, options, fixed, library_key(key, PROBE_STREAM)
 
 
 # --------------------------------------------------------------------------- the loss
