@@ -51,9 +51,12 @@ def _pad(a: np.ndarray, length: int, fill) -> np.ndarray:
     return np.concatenate([a, pad])
 
 
-def pad_batch(meshes: Sequence[Mesh]) -> PaddedBatch:
+def pad_batch(meshes: Sequence[Mesh], pad_to: tuple[int, int, int] | None = None) -> PaddedBatch:
     """Stack single meshes of any sizes into one padded batch (module docstring).
-    All meshes must share a dtype; batched meshes are refused."""
+    All meshes must share a dtype; batched meshes are refused.  ``pad_to``:
+    (vertices, faces, edges) to pad to, so that batches of similar meshes share
+    one shape (and one compiled program); it must leave at least one padding
+    vertex and edge (default: the largest sizes plus one)."""
     meshes = list(meshes)
     if not meshes:
         raise ValueError("pad_batch needs at least one mesh")
@@ -68,6 +71,12 @@ def pad_batch(meshes: Sequence[Mesh]) -> PaddedBatch:
     nv = max(m.num_vertices for m in meshes) + 1   # at least one padding vertex and edge each
     nf = max(m.num_faces for m in meshes)
     ne = max(m.num_edges for m in meshes) + 1
+    if pad_to is not None:
+        want = tuple(int(n) for n in pad_to)
+        if len(want) != 3 or want[0] < nv or want[1] < nf or want[2] < ne:
+            raise ValueError(f"pad_to {tuple(pad_to)} is smaller than the batch needs: at least "
+                             f"({nv}, {nf}, {ne}) vertices, faces, edges (one padding vertex and edge)")
+        nv, nf, ne = want
     cols = {k: [] for k in ("vertices", "faces", "edges", "face_edges", "src", "dst", "edge_of", "degree")}
     for m in meshes:
         d, e = m.num_vertices, m.num_edges      # first padding vertex / edge

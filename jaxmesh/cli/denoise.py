@@ -1,5 +1,6 @@
 """``jaxmesh denoise IN OUT``: any registered method, or ``--method auto`` (the
-default: method and parameters chosen blind); ``--lam auto`` / ``--tune`` tune."""
+default: method and parameters chosen blind); ``--lam auto`` / ``--tune`` tune;
+``--out-dir DIR IN ...``: a whole dataset (:mod:`._dataset`)."""
 
 from __future__ import annotations
 
@@ -9,7 +10,9 @@ import time
 from ..denoise import as_method
 from ..io import load, save
 from ..tune import choose_denoiser, denoise_with_tuning
-from ._common import CLIError, check_output, io_arguments, load_input, positional_output, with_caveats
+from .. import data
+from ._common import CLIError, check_output, load_input, positional_output, with_caveats
+from ._dataset import dataset_arguments, run_dataset
 from ._denoise_report import progress_bar, report_auto, report_run
 from ._flags import add_parameter_flags, given_parameters, list_methods
 
@@ -17,7 +20,11 @@ HELP = "denoise a mesh with any registered method"
 
 
 def configure(p) -> None:
-    io_arguments(p)
+    p.add_argument("paths", nargs="*", metavar="IN OUT", help="mesh to read and mesh to write (with --out-dir: "
+                   "every input)")
+    p.add_argument("--sample", choices=sorted(data.SAMPLES), help="read a sample mesh shipped with jaxmesh")
+    p.add_argument("--force", action="store_true", help="replace OUT if it exists")
+    dataset_arguments(p)
     p.add_argument("--method", default="auto",
                    help="denoising method, or 'auto' (default): choose the method and its parameters "
                         "blind, by a recorrupted estimate of the normal error (see --list-methods)")
@@ -55,6 +62,11 @@ def run(args) -> int:
     given = given_parameters(args)
     if args.noise_sigma is not None and not args.noise_sigma > 0:
         raise CLIError(f"--noise-sigma must be > 0, got {args.noise_sigma}")
+    if args.out_dir is not None:
+        return run_dataset(args, given)
+    if len(args.paths) > 2:
+        raise CLIError(f"{len(args.paths)} paths given: name IN OUT (or --out-dir DIR for many inputs)")
+    args.input, args.output = (args.paths + [None, None])[:2]
     if args.method == "auto" and (given or args.tune):
         flags = ", ".join("--" + k.replace("_", "-") for k in sorted(given)) or "--tune"
         raise CLIError(f"{flags} needs a named method (--method NAME); --method auto chooses its own parameters")

@@ -1,0 +1,381 @@
+"""Denoising whole datasets: size buckets, one compiled program per bucket
+shape, reads ahead and writes behind, a JSON-lines report, resumable, with
+failures isolated.
+
+**Buckets.**  Mesh i has V_i vertices, F_i faces, E_i edges.  Padded sizes are
+rounded up a geometric ladder (``LADDER_RATIO`` = 2^¼ apart, from
+``LADDER_START``), so meshes whose vertex counts round to the same rung share
+one padded shape and one compiled program; each dimension wastes at most
+2^¼ − 1 ≈ 19% (plus the one padding vertex and edge that
+:func:`~jaxmesh.batch.pad_batch` needs).  A bucket is cut into batches of
+``batch_size``; its last batch is filled up to the next power of two with
+copies of its first mesh (computed, never written), so a bucket compiles at
+most log₂(batch_size) + 1 programs.  ``waste`` in the summary is padded
+vertex slots computed over real ones.
+
+**Runs.**  Every mesh is denoised in its own unit frame (:func:`~jaxmesh.
+transforms.unit_frame`, as the CLI does), with one method and one parameter
+setting for all.  Methods that need a per-mesh auxiliary input (the
+face-graph filters) and ``method="auto"`` run mesh by mesh, still in the same
+stream.  Outputs are written atomically, so a rerun skips every output that
+exists (complete by construction) unless ``overwrite``; a mesh that cannot be
+read, is invalid, or diverges is reported with its reason and the rest go on.
+
+**Streams.**  Two passes over the files: the first reads every mesh to learn
+its sizes (its arrays are dropped at once), the second reads each batch on a
+reader thread one batch ahead of the computation and writes results on a
+writer thread, so memory is bounded by a few batches, not by the dataset.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import json
+import math
+import queue
+import threading
+import time
+from pathlib import Path
+from typing import Any, Callable, Iterable, Sequence
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .batch import pad_batch, unpad
+from .mesh import Mesh
+
+__all__ = ["LADDER_START", "LADDER_RATIO", "rung", "plan_batches", "Batch", "DatasetSummary",
+           "expand_inputs", "denoise_files", "MESH_SUFFIXES"]
+
+LADDER_START = 64
+LADDER_RATIO = 2 ** 0.25
+MESH_SUFFIXES = (".ply", ".obj", ".off", ".stl")
+
+
+def rung(n: int) -> int:
+    """The smallest ladder size ≥ n: ⌈LADDER_START · LADDER_RATIO^k⌉ for the least k ≥ 0."""
+    if n <= LADDER_START:
+        return LADDER_START
+    k = math.ceil(math.log(n / LADDER_START, LADDER_RATIO) - 1e-12)
+    size = math.ceil(LADDER_START * LADDER_RATIO ** k)
+    return size if size >= n else math.ceil(LADDER_START * LADDER_RATIO ** (k + 1))
+
+
+@dataclasses.dataclass(frozen=True)
+class Batch:
+    """One call of a compiled program: ``items`` (indices into the plan's sizes,
+    the real meshes), ``fill`` copies of the first item added to reach the
+    batch's size, and the padded (vertices, faces, edges) ``shape``."""
+
+    items: tuple[int, ...]
+    fill: int
+    shape: tuple[int, int, int]
+
+
+def _pow2_at_least(n: int) -> int:
+    return 1 << max(0, (n - 1).bit_length())
+
+
+def plan_batches(sizes: Sequence[tuple[int, int, int]], batch_size: int = 16) -> list[Batch]:
+    """Group meshes of (V, F, E) ``sizes`` into batches (module docstring): every
+    index appears in exactly one batch; batches of one bucket share a shape."""
+    if isinstance(batch_size, bool) or not isinstance(batch_size, int) or batch_size < 1:
+        raise ValueError(f"batch_size must be a positive int, got {batch_size!r}")
+    buckets: dict[int, list[int]] = {}
+    for i, (v, _, _) in enumerate(sizes):
+        buckets.setdefault(rung(v + 1), []).append(i)
+    out = []
+    for v_pad in sorted(buckets):
+        members = buckets[v_pad]
+        shape = (v_pad, rung(max(sizes[i][1] for i in members)), rung(max(sizes[i][2] for i in members) + 1))
+        for start in range(0, len(members), batch_size):
+            chunk = tuple(members[start:start + batch_size])
+            out.append(Batch(chunk, min(batch_size, _pow2_at_least(len(chunk))) - len(chunk), shape))
+    return out
+
+
+@dataclasses.dataclass(frozen=True)
+class DatasetSummary:
+    """What :func:`denoise_files` did: counts, the ``compiles`` (distinct
+    programs run), ``waste`` (padded vertex slots over real ones), wall
+    ``seconds``, and one ``records`` dict per input (also the report's lines)."""
+
+    done: int
+    skipped: int
+    failed: int
+    compiles: int
+    waste: float
+    seconds: float
+    records: list
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"done": self.done, "skipped": self.skipped, "failed": self.failed, "compiles": self.compiles,
+                "padding_waste": self.waste, "seconds": self.seconds}
+
+
+def expand_inputs(paths: Iterable[str]) -> list[Path]:
+    """Files named directly, every mesh file (by suffix) in a named directory
+    (sorted, not recursive), or the matches of a glob pattern; each once, in order."""
+    out: list[Path] = []
+    for p in paths:
+        path = Path(p)
+        if path.is_dir():
+            found = sorted(q for q in path.iterdir() if q.suffix.lower() in MESH_SUFFIXES and q.is_file())
+        elif any(ch in p for ch in "*?["):
+            anchor = Path(path.anchor) if path.is_absolute() else Path(".")
+            found = sorted(anchor.glob(str(path.relative_to(anchor)) if path.is_absolute() else p))
+        else:
+            found = [path]
+        out += [q for q in found if q not in out]
+    return out
+
+
+@functools.partial(jax.jit, static_argnames=("method", "statics"))
+def _run_padded(mesh: Mesh, continuous: dict, method: str, statics: tuple):
+    """The method on every mesh of a padded batch, each in its own unit frame:
+    (vertices (B, V, 3), diverged (B,))."""
+    from .denoise import METHODS, diverged
+    from .transforms import from_frame, to_frame, unit_frame
+
+    def one(m):
+        centre, scale = unit_frame(m)
+        work = to_frame(m, centre, scale)
+        out = METHODS[method](work, **continuous, **dict(statics))
+        return from_frame(out, centre, scale).vertices, diverged(work, out)
+
+    return jax.vmap(one)(mesh)
+
+
+def _split_params(method: str, params: dict) -> tuple[dict, tuple]:
+    from .denoise import METHODS
+
+    m = METHODS[method]
+    full = m.resolve(**params)
+    cont = {k: jnp.asarray(v, jnp.result_type(float)) for k, v in full.items() if m.params[k].kind == "continuous"}
+    statics = tuple(sorted((k, v) for k, v in full.items() if k not in cont and m.params[k].kind != "aux"))
+    return cont, statics
+
+
+def _output_for(path: Path, out_dir: Path, suffix: str | None) -> Path:
+    return out_dir / (path.stem + (suffix or path.suffix))
+
+
+def _check(method: str, params: dict, suffix: str | None) -> str:
+    """The method's registry name, every parameter checked before any file is read."""
+    from .denoise import METHODS, as_method
+
+    if method == "auto":
+        if params:
+            raise ValueError("method 'auto' chooses its own parameters; give none")
+    else:
+        m = as_method(method)
+        if METHODS.get(m.name) is not m:
+            raise ValueError("denoise_files takes a registered method name (or 'auto')")
+        m.resolve(**params)
+        method = m.name
+    if suffix is not None and suffix.lower() not in MESH_SUFFIXES:
+        raise ValueError(f"suffix must be one of {MESH_SUFFIXES}, got {suffix!r}")
+    return method
+
+
+def _collect(inputs, out_dir: Path, suffix: str | None, overwrite: bool, method: str):
+    """(inputs and outputs, one record each); existing outputs are marked skipped."""
+    files = expand_inputs([str(p) for p in inputs])
+    if not files:
+        raise ValueError("no input meshes found")
+    items = [(src, _output_for(src, out_dir, suffix)) for src in files]
+    outs = [o for _, o in items]
+    if len(set(outs)) != len(outs):
+        raise ValueError("two inputs map to the same output name; give them distinct stems")
+    records = [{"input": str(src), "output": str(out), "method": method} for src, out in items]
+    for rec, (_, out) in zip(records, items):
+        if out.exists() and not overwrite:
+            rec["status"] = "skipped"
+    return items, records
+
+
+def _read_sizes(items: list[tuple[Path, Path]], load: Callable, records: list) -> list[int]:
+    """First pass: (V, F, E) of every readable input; unreadable ones become failed records."""
+    ok = []
+    for k, (src, _) in enumerate(items):
+        try:
+            m = load(src)
+            records[k].update(vertices=m.num_vertices, faces=m.num_faces,
+                              _sizes=(m.num_vertices, m.num_faces, m.num_edges))
+            ok.append(k)
+        except (ValueError, OSError) as err:
+            records[k].update(status="failed", error=f"{type(err).__name__}: {err}")
+    return ok
+
+
+@dataclasses.dataclass
+class _Tally:
+    programs: set = dataclasses.field(default_factory=set)
+    real: int = 0
+    padded: int = 0
+
+
+def _run_batch(batch: Batch, meshes: list, method: str, params: dict, tally: _Tally) -> dict:
+    """{item: denoised mesh or the exception} for one padded batch."""
+    cont, statics = _split_params(method, params)
+    results = {k: mesh for k, mesh in zip(batch.items, meshes) if not isinstance(mesh, Mesh)}
+    good = [(k, mesh) for k, mesh in zip(batch.items, meshes) if isinstance(mesh, Mesh)]
+    if not good:
+        return results
+    group = [mesh for _, mesh in good]
+    group += [group[0]] * (batch.fill + len(batch.items) - len(good))
+    pb = pad_batch(group, batch.shape)
+    tally.programs.add((batch.shape, len(group)))
+    x, bad = _run_padded(pb.mesh, cont, method, statics)
+    singles, bad = unpad(pb, x), np.asarray(bad)
+    for j, (k, mesh) in enumerate(good):
+        results[k] = (FloatingPointError(f"{method} diverged on this mesh with {params}") if bad[j]
+                      else mesh.with_vertices(singles[j].vertices))
+    tally.real += sum(mesh.num_vertices for _, mesh in good)
+    tally.padded += batch.shape[0] * len(group)
+    return results
+
+
+def _run_single(mesh, method: str, params: dict, record: dict):
+    """One mesh by itself (auto, or a method with auxiliary inputs): the result or the exception."""
+    from .denoise import denoise_in_unit_frame
+
+    if not isinstance(mesh, Mesh):
+        return mesh
+    try:
+        if method != "auto":
+            return denoise_in_unit_frame(mesh, method, **params)
+        from .tune import choose_denoiser
+
+        choice = choose_denoiser(mesh)
+        record.update(chosen=choice.method, params=choice.params)
+        return choice.mesh
+    except (ValueError, FloatingPointError) as err:
+        return err
+
+
+def denoise_files(inputs: Sequence[str | Path], out_dir: str | Path, method: str = "taubin",
+                  params: dict | None = None, *, batch_size: int = 16, overwrite: bool = False,
+                  suffix: str | None = None, report: str | Path | None = None,
+                  progress: Callable[[int, int], None] | None = None) -> DatasetSummary:
+    """Denoise every mesh of ``inputs`` (files, directories, glob patterns:
+    :func:`expand_inputs`) with ``method`` and ``params`` into ``out_dir``
+    (same file name; ``suffix`` changes the format), in size buckets (module
+    docstring).  ``report``: a JSON-lines file, one line per input, appended to.
+    ``progress(done, total)`` is called after each batch.  Existing outputs are
+    skipped unless ``overwrite``.  Returns a :class:`DatasetSummary`."""
+    from .denoise import METHODS
+    from .io import load, save
+
+    start = time.perf_counter()
+    params = dict(params or {})
+    method = _check(method, params, suffix)
+    out_dir = Path(out_dir)
+    items, records = _collect(inputs, out_dir, suffix, overwrite, method)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    log = _Report(report)
+    todo = [k for k, rec in enumerate(records) if "status" not in rec]
+    todo = [todo[j] for j in _read_sizes([items[k] for k in todo], load, [records[k] for k in todo])]
+    for rec in records:
+        if "status" in rec:
+            log.write(rec)
+    batched = method != "auto" and not METHODS[method].aux
+    if batched:
+        plan = plan_batches([records[k]["_sizes"] for k in todo], batch_size)
+        plan = [dataclasses.replace(b, items=tuple(todo[i] for i in b.items)) for b in plan]
+    else:
+        plan = [Batch((k,), 0, (0, 0, 0)) for k in todo]
+    tally, writer, finished = _Tally(), _Writer(save, overwrite, log), 0
+    try:
+        for batch, meshes in _read_ahead(plan, items, load):
+            t0 = time.perf_counter()
+            results = (_run_batch(batch, meshes, method, params, tally) if batched
+                       else {batch.items[0]: _run_single(meshes[0], method, params, records[batch.items[0]])})
+            seconds = round((time.perf_counter() - t0) / len(batch.items), 4)
+            for k in batch.items:
+                r = results[k]
+                if isinstance(r, Mesh):
+                    records[k].update(status="ok", seconds=seconds)
+                    records[k].setdefault("params", params)
+                    writer.put(r, items[k][1], records[k])
+                else:
+                    records[k].update(status="failed", error=f"{type(r).__name__}: {r}")
+                    log.write(records[k])
+            finished += len(batch.items)
+            if progress is not None:
+                progress(finished, len(todo))
+    finally:   # what was computed is written, even when interrupted
+        writer.close()
+    return _summary(records, tally, start)
+
+
+def _summary(records: list, tally: _Tally, start: float) -> DatasetSummary:
+    count = lambda s: sum(r["status"] == s for r in records)   # noqa: E731
+    waste = (tally.padded - tally.real) / tally.real if tally.real else 0.0
+    return DatasetSummary(count("ok"), count("skipped"), count("failed"), len(tally.programs), waste,
+                          round(time.perf_counter() - start, 3), records)
+
+
+def _read_ahead(plan: list[Batch], items, loader):
+    """(batch, its meshes) one batch ahead, read on a thread; a mesh that fails
+    to read comes as its exception."""
+    q: queue.Queue = queue.Queue(maxsize=1)
+
+    def read():
+        for b in plan:
+            meshes = []
+            for k in b.items:
+                try:
+                    meshes.append(loader(items[k][0]))
+                except (ValueError, OSError) as err:
+                    meshes.append(err)
+            q.put((b, meshes))
+        q.put(None)
+
+    threading.Thread(target=read, name="jaxmesh-read-ahead", daemon=True).start()
+    while (got := q.get()) is not None:
+        yield got
+
+
+class _Report:
+    """The JSON-lines report, a line per input as soon as its fate is known (so an
+    interrupted run keeps the lines of what it finished); None writes nothing."""
+
+    def __init__(self, path):
+        self._path, self._lock = path, threading.Lock()
+
+    def write(self, record: dict) -> None:
+        record.pop("_sizes", None)
+        if self._path is None:
+            return
+        with self._lock, open(self._path, "a", encoding="utf-8") as fh:
+            fh.write(json.dumps(record) + "\n")
+
+
+class _Writer:
+    """Writes results on a thread, behind the computation; a write that fails marks
+    its record; each record goes to the report once written."""
+
+    def __init__(self, save, overwrite: bool, log: _Report):
+        self._q: queue.Queue = queue.Queue(maxsize=64)
+        self._save, self._overwrite, self._log = save, overwrite, log
+        self._thread = threading.Thread(target=self._work, name="jaxmesh-write-behind", daemon=True)
+        self._thread.start()
+
+    def _work(self):
+        while (job := self._q.get()) is not None:
+            mesh, path, rec = job
+            try:
+                self._save(mesh, path, overwrite=self._overwrite)
+            except (ValueError, OSError) as err:
+                rec.update(status="failed", error=f"{type(err).__name__}: {err}")
+            self._log.write(rec)
+
+    def put(self, mesh, path, rec):
+        self._q.put((mesh, path, rec))
+
+    def close(self):
+        self._q.put(None)
+        self._thread.join()

@@ -1,0 +1,136 @@
+"""The dataset runner (jaxmesh.dataset, ``jaxmesh denoise --out-dir``): buckets
+cover every mesh once, outputs equal per-mesh calls, bad files are reported and
+skipped, an interrupted run resumes without redoing or losing outputs."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import trimesh
+
+import jaxmesh
+from jaxmesh.cli import main
+from jaxmesh.dataset import LADDER_RATIO, denoise_files, expand_inputs, plan_batches, rung
+from jaxmesh.denoise import denoise_in_unit_frame
+
+
+def test_rung_is_the_least_ladder_size_above():
+    sizes = [rung(n) for n in range(1, 5000)]
+    assert all(s >= n for n, s in zip(range(1, 5000), sizes))
+    assert sizes == sorted(sizes) and rung(64) == 64 and rung(65) == 77
+    assert all(s <= max(64, LADDER_RATIO * n + 1) for n, s in zip(range(1, 5000), sizes))
+    assert len(set(sizes)) == 1 + int(np.ceil(4 * np.log2(5000 / 64)))   # 27 shapes for 1 to 5000 vertices
+
+
+def test_plan_covers_every_mesh_once_and_buckets_share_a_shape():
+    rng = np.random.default_rng(0)
+    v = rng.integers(10, 20000, 300)
+    sizes = [(int(n), int(2 * n - rng.integers(0, 5)), int(3 * n + rng.integers(0, 9))) for n in v]
+    plan = plan_batches(sizes, batch_size=8)
+    seen = sorted(i for b in plan for i in b.items)
+    assert seen == list(range(300))
+    for b in plan:
+        assert 1 <= len(b.items) <= 8 and len(b.items) + b.fill in (1, 2, 4, 8)
+        for i in b.items:
+            nv, nf, ne = sizes[i]
+            assert b.shape[0] > nv and b.shape[1] >= nf and b.shape[2] > ne   # one padding vertex and edge
+    shapes = {b.shape for b in plan}
+    assert len(shapes) == len({b.shape[0] for b in plan})                  # one shape per vertex bucket
+    with pytest.raises(ValueError, match="batch_size"):
+        plan_batches(sizes, batch_size=0)
+
+
+def _write_dataset(folder, count=7):
+    folder.mkdir()
+    rng = np.random.default_rng(1)
+    paths = []
+    for i in range(count):
+        base = trimesh.creation.icosphere(subdivisions=1 + i % 3) if i % 2 else trimesh.creation.box().subdivide()
+        v = base.vertices * (1 + i) + 0.02 * (1 + i) * rng.standard_normal(base.vertices.shape)
+        faces = base.faces[: len(base.faces) - (i % 3)]          # some with a boundary (and isolated vertices)
+        path = folder / f"m{i}.ply"
+        jaxmesh.save(jaxmesh.Mesh.from_arrays(v, faces), str(path))
+        paths.append(path)
+    return paths
+
+
+@pytest.mark.filterwarnings("ignore::jaxmesh.mesh.MeshWarning")
+@pytest.mark.parametrize("method,params", [("taubin", {"iterations": 7}), ("kernel", {"lam": 0.02, "iterations": 3}),
+                                           ("bilateral_normal", {"normal_iterations": 2, "vertex_iterations": 3})])
+def test_outputs_equal_per_mesh_calls(tmp_path, method, params):
+    paths = _write_dataset(tmp_path / "in")
+    s = denoise_files([str(tmp_path / "in")], tmp_path / "out", method, params, batch_size=2)
+    assert (s.done, s.skipped, s.failed) == (len(paths), 0, 0)
+    for p in paths:
+        want = denoise_in_unit_frame(jaxmesh.load(str(p)), method, **params)
+        got = jaxmesh.load(str(tmp_path / "out" / p.name))
+        np.testing.assert_allclose(got.vertices, want.vertices, rtol=0, atol=1e-12)
+        np.testing.assert_array_equal(got.faces, want.faces)
+    if method != "bilateral_normal":                  # face-graph filters run mesh by mesh
+        assert 1 <= s.compiles <= len(paths) and s.waste > 0
+
+
+@pytest.mark.filterwarnings("ignore::jaxmesh.mesh.MeshWarning")
+def test_a_corrupt_file_is_reported_and_skipped_and_the_exit_status_says_so(tmp_path, capsys):
+    paths = _write_dataset(tmp_path / "in", 4)
+    (tmp_path / "in" / "m1b.ply").write_text("ply\nformat ascii 1.0\nelement vertex 9\nend_header\n0 0\n")
+    (tmp_path / "in" / "notes.txt").write_text("not a mesh, not picked up")
+    report = tmp_path / "r.jsonl"
+    rc = main(["denoise", "--out-dir", str(tmp_path / "out"), str(tmp_path / "in"), "--method", "taubin",
+               "--report", str(report)])
+    out, err = capsys.readouterr()
+    assert rc == 1 and "4 written, 0 skipped (exist), 1 failed" in out
+    assert err.count("jaxmesh: error:") == 1 and "m1b.ply" in err
+    lines = [json.loads(line) for line in report.read_text().splitlines()]
+    assert sorted(r["status"] for r in lines) == ["failed"] + ["ok"] * 4
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == sorted(p.name for p in paths)
+
+
+@pytest.mark.filterwarnings("ignore::jaxmesh.mesh.MeshWarning")
+def test_an_interrupted_run_resumes_without_redoing_or_losing_outputs(tmp_path):
+    paths = _write_dataset(tmp_path / "in", 8)
+    seen = []
+
+    def stop_after_two_batches(done, total):
+        seen.append(done)
+        if len(seen) == 2:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        denoise_files([str(tmp_path / "in")], tmp_path / "out", "taubin", batch_size=2,
+                      progress=stop_after_two_batches)
+    first = {p.name: p.stat().st_mtime_ns for p in (tmp_path / "out").iterdir()}
+    assert 0 < len(first) < len(paths) and not list((tmp_path / "out").glob(".*.tmp"))
+    s = denoise_files([str(tmp_path / "in")], tmp_path / "out", "taubin", batch_size=2)
+    assert s.skipped == len(first) and s.done == len(paths) - len(first) and s.failed == 0
+    for p in paths:
+        out = tmp_path / "out" / p.name
+        if p.name in first:
+            assert out.stat().st_mtime_ns == first[p.name]           # not redone
+        want = denoise_in_unit_frame(jaxmesh.load(str(p)), "taubin")
+        np.testing.assert_allclose(jaxmesh.load(str(out)).vertices, want.vertices, atol=1e-12)
+
+
+def test_inputs_from_files_directories_and_globs(tmp_path):
+    (tmp_path / "d").mkdir()
+    for name in ("b.ply", "a.obj", "c.txt"):
+        (tmp_path / "d" / name).write_text("")
+    got = expand_inputs([str(tmp_path / "d"), str(tmp_path / "d" / "*.ply"), str(tmp_path / "d" / "a.obj")])
+    assert [p.name for p in got] == ["a.obj", "b.ply"]
+
+
+def test_bad_arguments_are_refused_before_any_work(tmp_path, capsys):
+    with pytest.raises(ValueError, match="no input meshes"):
+        denoise_files([str(tmp_path / "*.ply")], tmp_path / "out")
+    with pytest.raises(ValueError, match="chooses its own parameters"):
+        denoise_files([str(tmp_path)], tmp_path / "out", "auto", {"lam": 1.0})
+    with pytest.raises(ValueError, match="suffix"):
+        denoise_files([str(tmp_path)], tmp_path / "out", "taubin", suffix=".png")
+    assert not (tmp_path / "out").exists()
+    assert main(["denoise", "--out-dir", str(tmp_path / "o"), str(tmp_path), "--method", "kernel", "--lam",
+                 "auto"]) == 1
+    assert "not supported with --out-dir" in capsys.readouterr().err
+    with pytest.raises(ValueError, match="pad_to"):
+        jaxmesh.batch.pad_batch([jaxmesh.Mesh.from_arrays(np.eye(3), np.array([[0, 1, 2]]))], (3, 1, 4))
