@@ -29,7 +29,7 @@ from jax.sharding import Mesh as DeviceMesh
 from jax.sharding import NamedSharding, PartitionSpec
 from jaxtyping import Array, Bool
 
-from .mesh import Mesh
+from .mesh import Mesh, to_device
 
 __all__ = ["PaddedBatch", "pad_batch", "unpad", "shard"]
 
@@ -88,10 +88,10 @@ def pad_batch(meshes: Sequence[Mesh], pad_to: tuple[int, int, int] | None = None
         cols["dst"].append(_pad(np.asarray(m.dst), 2 * ne, d))
         cols["edge_of"].append(_pad(np.asarray(m.edge_of), 2 * ne, e))
         cols["degree"].append(_pad(np.asarray(m.degree), nv, 0))
-    stacked = {k: jnp.asarray(np.stack(v)) for k, v in cols.items()}
-    stacked["vertices"] = stacked["vertices"].astype(meshes[0].dtype)
+    stacked = {k: to_device(np.stack(v)) for k, v in cols.items()}
+    stacked["vertices"] = to_device(np.stack(cols["vertices"]), meshes[0].dtype)
     sizes = tuple(m.num_vertices for m in meshes)
-    mask = jnp.asarray(np.arange(nv)[None, :] < np.asarray(sizes)[:, None])
+    mask = to_device(np.arange(nv)[None, :] < np.asarray(sizes)[:, None])
     return PaddedBatch(Mesh(**stacked), sizes, tuple(m.num_faces for m in meshes), mask)
 
 
@@ -101,16 +101,14 @@ def unpad(batch: PaddedBatch, result=None) -> list[Mesh]:
     the positions; without it the input positions are returned."""
     x = batch.mesh.vertices if result is None else (
         result.vertices if isinstance(result, Mesh) else jnp.asarray(result))
+    host = {k: np.asarray(getattr(batch.mesh, k)) for k in ("faces", "edges", "face_edges", "src", "dst",
+                                                             "edge_of", "degree")}
+    host["vertices"] = np.asarray(x)      # sliced on the host: eager slicing compiles once per mesh size
     out = []
     for k, (v, f) in enumerate(zip(batch.num_vertices, batch.num_faces)):
-        e = int(jnp.sum(batch.mesh.edges[k, :, 0] != batch.mesh.edges[k, :, 1]))
-        fields = dict(
-            vertices=x[k, :v], faces=batch.mesh.faces[k, :f], edges=batch.mesh.edges[k, :e],
-            face_edges=batch.mesh.face_edges[k, :f], src=batch.mesh.src[k, : 2 * e],
-            dst=batch.mesh.dst[k, : 2 * e], edge_of=batch.mesh.edge_of[k, : 2 * e],
-            degree=batch.mesh.degree[k, :v],
-        )
-        out.append(Mesh(**fields))
+        e = int(np.sum(host["edges"][k, :, 0] != host["edges"][k, :, 1]))
+        cut = dict(vertices=v, faces=f, edges=e, face_edges=f, src=2 * e, dst=2 * e, edge_of=2 * e, degree=v)
+        out.append(Mesh(**{name: to_device(host[name][k, :n]) for name, n in cut.items()}))
     return out
 
 

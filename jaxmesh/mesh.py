@@ -66,6 +66,17 @@ def build_topology(faces: np.ndarray, num_vertices: int) -> dict[str, np.ndarray
     }
 
 
+def to_device(a: np.ndarray, dtype=None) -> Array:
+    """A host array on the default device, its dtype canonicalised (x64 setting).
+    ``jax.device_put``, not ``jnp.asarray``: in JAX 0.10 the latter compiles a
+    small program for every new shape, i.e. several per mesh size loaded."""
+    target = jax.dtypes.canonicalize_dtype(a.dtype if dtype is None else dtype)
+    if dtype is not None and np.dtype(dtype) != target:
+        warnings.warn(f"dtype {np.dtype(dtype)} is not available without jax_enable_x64; using {target}",
+                      UserWarning, stacklevel=3)
+    return jax.device_put(np.asarray(a, dtype=target))
+
+
 def _validate_vertices(vertices) -> np.ndarray:
     v = np.asarray(vertices)
     if v.dtype == object:
@@ -214,8 +225,8 @@ class Mesh(eqx.Module):
             raise ValueError(
                 f"vertex {i} {v[i].tolist()} does not fit in {target} (largest {float(jnp.finfo(target).max):.3g}); "
                 "enable 64-bit floats (jax.config.update('jax_enable_x64', True)) or rescale the mesh")
-        vj = jnp.asarray(v, dtype=dtype)
-        return cls(vertices=vj, faces=jnp.asarray(f), **{k: jnp.asarray(a) for k, a in topo.items()})
+        return cls(vertices=to_device(v, dtype), faces=to_device(f),
+                   **{k: to_device(a) for k, a in topo.items()})
 
     # ------------------------------------------------------------------ counts
     @property

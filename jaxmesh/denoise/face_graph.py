@@ -30,7 +30,7 @@ import scipy.sparse as sp
 from jaxtyping import Array, Bool, Float, Int
 
 from .._private import safe_divide, safe_norm
-from ..mesh import Mesh
+from ..mesh import Mesh, to_device
 
 __all__ = ["FaceGraph", "face_graph", "face_centroids", "centroid_spacing"]
 
@@ -120,7 +120,7 @@ def face_graph(mesh: Mesh) -> FaceGraph:
         fill = np.zeros(nf, np.int64)
     patch_edges, patch_edge_mask = _padded_rows(both, fill)
 
-    as32 = lambda a: jnp.asarray(np.ascontiguousarray(a, dtype=np.int32))  # noqa: E731
+    as32 = lambda a: to_device(np.ascontiguousarray(a, dtype=np.int32))  # noqa: E731
     return FaceGraph(as32(ring), jnp.asarray(ring_mask), as32(patch_edges), jnp.asarray(patch_edge_mask),
                      as32(edge_faces), as32(edge_apex), jnp.asarray(interior))
 
