@@ -139,6 +139,7 @@ def main() -> None:
     ap.add_argument("--count", type=int, default=200)
     ap.add_argument("--data", type=Path, default=Path(tempfile.gettempdir()) / "jaxmesh-bench-dataset")
     ap.add_argument("--batch-size", type=int, default=16)
+    ap.add_argument("--variants", nargs="*", default=["runner", "loop", "open3d"])
     ap.add_argument("--variant", help=argparse.SUPPRESS)
     args = ap.parse_args()
     data = args.data / f"in{args.count}"
@@ -155,7 +156,7 @@ def main() -> None:
     print(f"dataset: {len(paths)} meshes, {min(sizes)}–{max(sizes)} vertices (median {int(np.median(sizes))}), "
           f"{len(set(sizes))} distinct sizes; made/checked in {time.perf_counter() - t:.0f} s", flush=True)
     rows = {}
-    for name in ("runner", "loop", "open3d"):
+    for name in args.variants:
         cmd = [sys.executable, __file__, "--variant", name, "--count", str(args.count), "--data", str(args.data),
                "--batch-size", str(args.batch_size)]
         res = subprocess.run(cmd, capture_output=True, text=True)

@@ -21,10 +21,12 @@ stream.  Outputs are written atomically, so a rerun skips every output that
 exists (complete by construction) unless ``overwrite``; a mesh that cannot be
 read, is invalid, or diverges is reported with its reason and the rest go on.
 
-**Streams.**  Two passes over the files: the first reads every mesh to learn
-its sizes (its arrays are dropped at once), the second reads each batch on a
-reader thread one batch ahead of the computation and writes results on a
-writer thread, so memory is bounded by a few batches, not by the dataset.
+**Streams.**  Two passes over the files: the first learns every mesh's sizes
+from its header (PLY, OFF: :func:`peek_sizes`; other formats are read and
+dropped), the second reads each batch on a reader thread one batch ahead of
+the computation and writes results on a writer thread, so memory is bounded
+by a few batches, not by the dataset.  A batch whose meshes turn out larger
+than their headers said gets the next ladder size (one more compile).
 """
 
 from __future__ import annotations
@@ -47,7 +49,7 @@ from .batch import pad_batch, unpad
 from .mesh import Mesh
 
 __all__ = ["LADDER_START", "LADDER_RATIO", "rung", "plan_batches", "Batch", "DatasetSummary",
-           "expand_inputs", "denoise_files", "MESH_SUFFIXES"]
+           "expand_inputs", "denoise_files", "MESH_SUFFIXES", "peek_sizes"]
 
 LADDER_START = 64
 LADDER_RATIO = 2 ** 0.25
@@ -196,14 +198,46 @@ def _collect(inputs, out_dir: Path, suffix: str | None, overwrite: bool, method:
     return items, records
 
 
+def peek_sizes(path: Path) -> tuple[int, int] | None:
+    """(vertices, faces) from a PLY or OFF header (the first 64 KiB), or None when
+    the file is of another format or its header cannot be read that way.  An
+    estimate for planning only: the mesh is checked when it is loaded."""
+    suffix = path.suffix.lower()
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(65536).decode("latin-1")
+        if suffix == ".ply":
+            counts = {}
+            for line in head.split("end_header")[0].splitlines():
+                tok = line.split()
+                if len(tok) == 3 and tok[0] == "element":
+                    counts[tok[1]] = int(tok[2])
+            return (counts["vertex"], counts["face"]) if "end_header" in head else None
+        if suffix == ".off":
+            lines = [ln.split("#")[0].strip() for ln in head.splitlines()]
+            lines = [ln for ln in lines if ln]
+            first = lines[0][3:].split() if lines[0].startswith("OFF") else None
+            tok = first if first else lines[1].split()
+            return int(tok[0]), int(tok[1])
+    except (OSError, ValueError, KeyError, IndexError):
+        return None
+    return None
+
+
 def _read_sizes(items: list[tuple[Path, Path]], load: Callable, records: list) -> list[int]:
-    """First pass: (V, F, E) of every readable input; unreadable ones become failed records."""
+    """First pass: (V, F, E) of every input, from its header where it has one
+    (E estimated as V + F, Euler's V − E + F = χ with χ ≈ 0), else by loading
+    it; a file that fails to load becomes a failed record."""
     ok = []
     for k, (src, _) in enumerate(items):
+        peek = peek_sizes(src)
+        if peek is not None and min(peek) > 0:
+            records[k]["_sizes"] = (peek[0], peek[1], peek[0] + peek[1])
+            ok.append(k)
+            continue
         try:
             m = load(src)
-            records[k].update(vertices=m.num_vertices, faces=m.num_faces,
-                              _sizes=(m.num_vertices, m.num_faces, m.num_edges))
+            records[k]["_sizes"] = (m.num_vertices, m.num_faces, m.num_edges)
             ok.append(k)
         except (ValueError, OSError) as err:
             records[k].update(status="failed", error=f"{type(err).__name__}: {err}")
@@ -226,15 +260,18 @@ def _run_batch(batch: Batch, meshes: list, method: str, params: dict, tally: _Ta
         return results
     group = [mesh for _, mesh in good]
     group += [group[0]] * (batch.fill + len(batch.items) - len(good))
-    pb = pad_batch(group, batch.shape)
-    tally.programs.add((batch.shape, len(group)))
+    need = (max(m.num_vertices for m in group) + 1, max(m.num_faces for m in group),
+            max(m.num_edges for m in group) + 1)     # the plan's sizes were estimates from the headers
+    shape = tuple(s if s >= n else rung(n) for s, n in zip(batch.shape, need))
+    pb = pad_batch(group, shape)
+    tally.programs.add((shape, len(group)))
     x, bad = _run_padded(pb.mesh, cont, method, statics)
     singles, bad = unpad(pb, x), np.asarray(bad)
     for j, (k, mesh) in enumerate(good):
         results[k] = (FloatingPointError(f"{method} diverged on this mesh with {params}") if bad[j]
                       else mesh.with_vertices(singles[j].vertices))
     tally.real += sum(mesh.num_vertices for _, mesh in good)
-    tally.padded += batch.shape[0] * len(group)
+    tally.padded += shape[0] * len(group)
     return results
 
 
@@ -297,7 +334,7 @@ def denoise_files(inputs: Sequence[str | Path], out_dir: str | Path, method: str
             for k in batch.items:
                 r = results[k]
                 if isinstance(r, Mesh):
-                    records[k].update(status="ok", seconds=seconds)
+                    records[k].update(status="ok", vertices=r.num_vertices, faces=r.num_faces, seconds=seconds)
                     records[k].setdefault("params", params)
                     writer.put(r, items[k][1], records[k])
                 else:

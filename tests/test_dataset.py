@@ -77,14 +77,16 @@ def test_a_corrupt_file_is_reported_and_skipped_and_the_exit_status_says_so(tmp_
     paths = _write_dataset(tmp_path / "in", 4)
     (tmp_path / "in" / "m1b.ply").write_text("ply\nformat ascii 1.0\nelement vertex 9\nend_header\n0 0\n")
     (tmp_path / "in" / "notes.txt").write_text("not a mesh, not picked up")
+    whole = paths[2].read_bytes()                       # its header is intact, its body cut: fails when read
+    (tmp_path / "in" / "m2b.ply").write_bytes(whole[: len(whole) - 40])
     report = tmp_path / "r.jsonl"
     rc = main(["denoise", "--out-dir", str(tmp_path / "out"), str(tmp_path / "in"), "--method", "taubin",
                "--report", str(report)])
     out, err = capsys.readouterr()
-    assert rc == 1 and "4 written, 0 skipped (exist), 1 failed" in out
-    assert err.count("jaxmesh: error:") == 1 and "m1b.ply" in err
+    assert rc == 1 and "4 written, 0 skipped (exist), 2 failed" in out
+    assert err.count("jaxmesh: error:") == 2 and "m1b.ply" in err and "m2b.ply" in err
     lines = [json.loads(line) for line in report.read_text().splitlines()]
-    assert sorted(r["status"] for r in lines) == ["failed"] + ["ok"] * 4
+    assert sorted(r["status"] for r in lines) == ["failed"] * 2 + ["ok"] * 4
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == sorted(p.name for p in paths)
 
 
