@@ -88,7 +88,7 @@ def _compile_listener(box: dict):
     jax.monitoring.register_event_duration_secs_listener(on_event)
 
 
-def run_variant(name: str, data: Path, out: Path, batch_size: int) -> dict:
+def run_variant(name: str, data: Path, out: Path, batch_size: int, ladder: float) -> dict:
     files = sorted(data.glob("*.ply"))
     out.mkdir(parents=True, exist_ok=True)
     comp = {"count": 0, "seconds": 0.0}
@@ -113,7 +113,7 @@ def run_variant(name: str, data: Path, out: Path, batch_size: int) -> dict:
         start = time.perf_counter()
         if name == "runner":
             s = denoise_files([str(data)], out, "umbrella_flow", {"iterations": ITERATIONS, "lam": LAM},
-                              batch_size=batch_size, overwrite=True)
+                              batch_size=batch_size, ladder=ladder, overwrite=True)
             extra = {"padding_waste": round(s.waste, 3), "failed": s.failed, "batch_shapes": s.compiles}
         else:
             for p in files:
@@ -139,12 +139,14 @@ def main() -> None:
     ap.add_argument("--count", type=int, default=200)
     ap.add_argument("--data", type=Path, default=Path(tempfile.gettempdir()) / "jaxmesh-bench-dataset")
     ap.add_argument("--batch-size", type=int, default=16)
+    ap.add_argument("--ladder", type=float, default=2 ** 0.25, help="ratio between padded sizes (the runner)")
     ap.add_argument("--variants", nargs="*", default=["runner", "loop", "open3d"])
     ap.add_argument("--variant", help=argparse.SUPPRESS)
     args = ap.parse_args()
     data = args.data / f"in{args.count}"
     if args.variant:
-        print(json.dumps(run_variant(args.variant, data, args.data / f"out-{args.variant}", args.batch_size)))
+        print(json.dumps(run_variant(args.variant, data, args.data / f"out-{args.variant}", args.batch_size,
+                                     args.ladder)))
         return
     t = time.perf_counter()
     paths = make_dataset(data, args.count)
@@ -158,7 +160,7 @@ def main() -> None:
     rows = {}
     for name in args.variants:
         cmd = [sys.executable, __file__, "--variant", name, "--count", str(args.count), "--data", str(args.data),
-               "--batch-size", str(args.batch_size)]
+               "--batch-size", str(args.batch_size), "--ladder", str(args.ladder)]
         res = subprocess.run(cmd, capture_output=True, text=True)
         if res.returncode:
             print(f"{name}: failed\n{res.stderr[-2000:]}")

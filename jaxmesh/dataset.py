@@ -31,6 +31,7 @@ than their headers said gets the next ladder size (one more compile).
 
 from __future__ import annotations
 
+import concurrent.futures
 import dataclasses
 import functools
 import json
@@ -56,13 +57,15 @@ LADDER_RATIO = 2 ** 0.25
 MESH_SUFFIXES = (".ply", ".obj", ".off", ".stl")
 
 
-def rung(n: int) -> int:
-    """The smallest ladder size ≥ n: ⌈LADDER_START · LADDER_RATIO^k⌉ for the least k ≥ 0."""
+def rung(n: int, ratio: float = LADDER_RATIO) -> int:
+    """The smallest ladder size ≥ n: ⌈LADDER_START · ratio^k⌉ for the least k ≥ 0."""
+    if not ratio > 1:
+        raise ValueError(f"the ladder ratio must be > 1, got {ratio!r}")
     if n <= LADDER_START:
         return LADDER_START
-    k = math.ceil(math.log(n / LADDER_START, LADDER_RATIO) - 1e-12)
-    size = math.ceil(LADDER_START * LADDER_RATIO ** k)
-    return size if size >= n else math.ceil(LADDER_START * LADDER_RATIO ** (k + 1))
+    k = math.ceil(math.log(n / LADDER_START, ratio) - 1e-12)
+    size = math.ceil(LADDER_START * ratio ** k)
+    return size if size >= n else math.ceil(LADDER_START * ratio ** (k + 1))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -80,18 +83,21 @@ def _pow2_at_least(n: int) -> int:
     return 1 << max(0, (n - 1).bit_length())
 
 
-def plan_batches(sizes: Sequence[tuple[int, int, int]], batch_size: int = 16) -> list[Batch]:
+def plan_batches(sizes: Sequence[tuple[int, int, int]], batch_size: int = 16,
+                 ratio: float = LADDER_RATIO) -> list[Batch]:
     """Group meshes of (V, F, E) ``sizes`` into batches (module docstring): every
-    index appears in exactly one batch; batches of one bucket share a shape."""
+    index appears in exactly one batch; batches of one bucket share a shape.
+    ``ratio``: the ladder's step (fewer shapes and compiles, more padding)."""
     if isinstance(batch_size, bool) or not isinstance(batch_size, int) or batch_size < 1:
         raise ValueError(f"batch_size must be a positive int, got {batch_size!r}")
     buckets: dict[int, list[int]] = {}
     for i, (v, _, _) in enumerate(sizes):
-        buckets.setdefault(rung(v + 1), []).append(i)
+        buckets.setdefault(rung(v + 1, ratio), []).append(i)
     out = []
     for v_pad in sorted(buckets):
         members = buckets[v_pad]
-        shape = (v_pad, rung(max(sizes[i][1] for i in members)), rung(max(sizes[i][2] for i in members) + 1))
+        shape = (v_pad, rung(max(sizes[i][1] for i in members), ratio),
+                 rung(max(sizes[i][2] for i in members) + 1, ratio))
         for start in range(0, len(members), batch_size):
             chunk = tuple(members[start:start + batch_size])
             out.append(Batch(chunk, min(batch_size, _pow2_at_least(len(chunk))) - len(chunk), shape))
@@ -251,7 +257,7 @@ class _Tally:
     padded: int = 0
 
 
-def _run_batch(batch: Batch, meshes: list, method: str, params: dict, tally: _Tally) -> dict:
+def _run_batch(batch: Batch, meshes: list, method: str, params: dict, tally: _Tally, compiled: dict) -> dict:
     """{item: denoised mesh or the exception} for one padded batch."""
     cont, statics = _split_params(method, params)
     results = {k: mesh for k, mesh in zip(batch.items, meshes) if not isinstance(mesh, Mesh)}
@@ -265,7 +271,8 @@ def _run_batch(batch: Batch, meshes: list, method: str, params: dict, tally: _Ta
     shape = tuple(s if s >= n else rung(n) for s, n in zip(batch.shape, need))
     pb = pad_batch(group, shape)
     tally.programs.add((shape, len(group)))
-    x, bad = _run_padded(pb.mesh, cont, method, statics)
+    ahead = compiled.get((shape, len(group)))
+    x, bad = ahead.result()(pb.mesh, cont) if ahead is not None else _run_padded(pb.mesh, cont, method, statics)
     singles, bad = unpad(pb, x), np.asarray(bad)
     for j, (k, mesh) in enumerate(good):
         results[k] = (FloatingPointError(f"{method} diverged on this mesh with {params}") if bad[j]
@@ -273,6 +280,33 @@ def _run_batch(batch: Batch, meshes: list, method: str, params: dict, tally: _Ta
     tally.real += sum(mesh.num_vertices for _, mesh in good)
     tally.padded += shape[0] * len(group)
     return results
+
+
+def _spec(shape: tuple[int, int, int], count: int, dtype) -> Mesh:
+    """The abstract padded batch of ``count`` meshes of ``shape``: what
+    :func:`~jaxmesh.batch.pad_batch` builds (int32 topology, as build_topology)."""
+    v, f, e = shape
+    sds = jax.ShapeDtypeStruct
+    i32 = np.int32
+    return Mesh(vertices=sds((count, v, 3), dtype), faces=sds((count, f, 3), i32), edges=sds((count, e, 2), i32),
+                face_edges=sds((count, f, 3), i32), src=sds((count, 2 * e), i32), dst=sds((count, 2 * e), i32),
+                edge_of=sds((count, 2 * e), i32), degree=sds((count, v), i32))
+
+
+def _precompile(plan: list[Batch], method: str, params: dict, dtype, workers: int = 2) -> dict:
+    """Compile every planned (shape, batch size) on ``workers`` threads, ahead of
+    the stream (XLA compiles without the GIL, so this overlaps reading):
+    {(shape, count): future of the compiled program}."""
+    cont, statics = _split_params(method, params)
+    pool = concurrent.futures.ThreadPoolExecutor(workers, thread_name_prefix="jaxmesh-compile")
+    jobs = {}
+    for b in plan:
+        key = (b.shape, len(b.items) + b.fill)
+        if key not in jobs:
+            jobs[key] = pool.submit(lambda k=key: _run_padded.lower(_spec(k[0], k[1], dtype), cont, method=method,
+                                                                   statics=statics).compile())
+    pool.shutdown(wait=False)
+    return jobs
 
 
 def _run_single(mesh, method: str, params: dict, record: dict):
@@ -294,7 +328,8 @@ def _run_single(mesh, method: str, params: dict, record: dict):
 
 
 def denoise_files(inputs: Sequence[str | Path], out_dir: str | Path, method: str = "taubin",
-                  params: dict | None = None, *, batch_size: int = 16, overwrite: bool = False,
+                  params: dict | None = None, *, batch_size: int = 16, ladder: float = LADDER_RATIO,
+                  overwrite: bool = False,
                   suffix: str | None = None, report: str | Path | None = None,
                   progress: Callable[[int, int], None] | None = None) -> DatasetSummary:
     """Denoise every mesh of ``inputs`` (files, directories, glob patterns:
@@ -302,7 +337,8 @@ def denoise_files(inputs: Sequence[str | Path], out_dir: str | Path, method: str
     (same file name; ``suffix`` changes the format), in size buckets (module
     docstring).  ``report``: a JSON-lines file, one line per input, appended to.
     ``progress(done, total)`` is called after each batch.  Existing outputs are
-    skipped unless ``overwrite``.  Returns a :class:`DatasetSummary`."""
+    skipped unless ``overwrite``.  ``ladder``: the ratio between padded sizes
+    (larger: fewer compiles, more padding).  Returns a :class:`DatasetSummary`."""
     from .denoise import METHODS
     from .io import load, save
 
@@ -320,15 +356,16 @@ def denoise_files(inputs: Sequence[str | Path], out_dir: str | Path, method: str
             log.write(rec)
     batched = method != "auto" and not METHODS[method].aux
     if batched:
-        plan = plan_batches([records[k]["_sizes"] for k in todo], batch_size)
+        plan = plan_batches([records[k]["_sizes"] for k in todo], batch_size, ladder)
         plan = [dataclasses.replace(b, items=tuple(todo[i] for i in b.items)) for b in plan]
     else:
         plan = [Batch((k,), 0, (0, 0, 0)) for k in todo]
+    compiled = _precompile(plan, method, params, jnp.result_type(float)) if batched else {}
     tally, writer, finished = _Tally(), _Writer(save, overwrite, log), 0
     try:
         for batch, meshes in _read_ahead(plan, items, load):
             t0 = time.perf_counter()
-            results = (_run_batch(batch, meshes, method, params, tally) if batched
+            results = (_run_batch(batch, meshes, method, params, tally, compiled) if batched
                        else {batch.items[0]: _run_single(meshes[0], method, params, records[batch.items[0]])})
             seconds = round((time.perf_counter() - t0) / len(batch.items), 4)
             for k in batch.items:

@@ -17,6 +17,8 @@ def dataset_arguments(p) -> None:
                    help="denoise every IN (files, directories of meshes, glob patterns) into DIR, in size "
                         "buckets; outputs that exist are skipped (resume) unless --force")
     p.add_argument("--batch-size", type=int, default=16, metavar="N", help="meshes per compiled call (--out-dir)")
+    p.add_argument("--ladder", type=float, default=2 ** 0.25, metavar="R",
+                   help="ratio between padded mesh sizes (--out-dir; larger: fewer compiles, more padding)")
     p.add_argument("--report", metavar="FILE", help="append one JSON line per mesh to FILE (--out-dir)")
     p.add_argument("--suffix", metavar=".EXT", help="output format for --out-dir (default: the input's)")
 
@@ -40,7 +42,7 @@ def run_dataset(args, given: dict) -> int:
     if not args.paths:
         raise CLIError("--out-dir needs at least one input (file, directory or glob)")
     summary = denoise_files(args.paths, args.out_dir, args.method, given, batch_size=args.batch_size,
-                            overwrite=args.force, suffix=args.suffix, report=args.report, progress=_progress)
+                            ladder=args.ladder, overwrite=args.force, suffix=args.suffix, report=args.report, progress=_progress)
     for rec in summary.records:
         if rec["status"] == "failed":
             where = "" if rec["input"] in rec["error"] else f"{rec['input']}: "
