@@ -345,6 +345,7 @@ def denoise_files(inputs: Sequence[str | Path], out_dir: str | Path, method: str
     start = time.perf_counter()
     params = dict(params or {})
     method = _check(method, params, suffix)
+    rung(LADDER_START + 1, ladder)            # the ladder checked before any file is read
     out_dir = Path(out_dir)
     items, records = _collect(inputs, out_dir, suffix, overwrite, method)
     out_dir.mkdir(parents=True, exist_ok=True)

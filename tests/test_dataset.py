@@ -130,6 +130,8 @@ def test_bad_arguments_are_refused_before_any_work(tmp_path, capsys):
         denoise_files([str(tmp_path)], tmp_path / "out", "auto", {"lam": 1.0})
     with pytest.raises(ValueError, match="suffix"):
         denoise_files([str(tmp_path)], tmp_path / "out", "taubin", suffix=".png")
+    with pytest.raises(ValueError, match="ladder ratio"):
+        denoise_files([str(tmp_path)], tmp_path / "out", "taubin", ladder=1.0)
     assert not (tmp_path / "out").exists()
     assert main(["denoise", "--out-dir", str(tmp_path / "o"), str(tmp_path), "--method", "kernel", "--lam",
                  "auto"]) == 1
