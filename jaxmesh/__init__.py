@@ -30,7 +30,7 @@ from .transforms import normalize
 __version__ = "0.1.0"
 
 #: subpackages imported on first attribute access (PEP 562)
-_LAZY = ("batch", "compress", "data", "denoise", "hash", "metrics", "operators", "sparse",
+_LAZY = ("batch", "compress", "data", "dataset", "denoise", "hash", "metrics", "operators", "sparse",
          "stats", "tune")
 
 
@@ -66,6 +66,7 @@ __all__ = [
     "batch",
     "compress",
     "data",
+    "dataset",
     "denoise",
     "geometry",
     "hash",

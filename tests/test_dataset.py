@@ -138,3 +138,32 @@ def test_bad_arguments_are_refused_before_any_work(tmp_path, capsys):
     assert "not supported with --out-dir" in capsys.readouterr().err
     with pytest.raises(ValueError, match="pad_to"):
         jaxmesh.batch.pad_batch([jaxmesh.Mesh.from_arrays(np.eye(3), np.array([[0, 1, 2]]))], (3, 1, 4))
+
+
+@pytest.mark.filterwarnings("ignore::jaxmesh.mesh.MeshWarning")
+def test_two_processes_with_jax_distributed_equal_one(tmp_path):
+    """Two CLI processes on 127.0.0.1 (jax.distributed, a free coordinator port),
+    each denoising its share: together they write exactly the files one process
+    writes, byte for byte."""
+    import socket
+    import subprocess
+    import sys
+
+    _write_dataset(tmp_path / "in", 6)
+    common = [sys.executable, "-m", "jaxmesh", "denoise", str(tmp_path / "in"), "--method", "taubin",
+              "--iterations", "4", "--batch-size", "2"]
+    assert subprocess.run(common + ["--out-dir", str(tmp_path / "one")], capture_output=True).returncode == 0
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    procs = [subprocess.Popen(common + ["--out-dir", str(tmp_path / "two"), "--coordinator", f"127.0.0.1:{port}",
+                                        "--num-processes", "2", "--process-id", str(i)],
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE) for i in (0, 1)]
+    outs = [p.communicate(timeout=120) for p in procs]
+    assert [p.returncode for p in procs] == [0, 0], [o[1][-500:] for o in outs]
+    written = [int(o[0].split()[0]) for o in outs]
+    assert sorted(written) == [3, 3]                                  # each its share
+    one = sorted(p.name for p in (tmp_path / "one").iterdir())
+    assert sorted(p.name for p in (tmp_path / "two").iterdir()) == one
+    for name in one:
+        assert (tmp_path / "one" / name).read_bytes() == (tmp_path / "two" / name).read_bytes()

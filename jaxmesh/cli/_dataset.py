@@ -21,6 +21,11 @@ def dataset_arguments(p) -> None:
                    help="ratio between padded mesh sizes (--out-dir; larger: fewer compiles, more padding)")
     p.add_argument("--report", metavar="FILE", help="append one JSON line per mesh to FILE (--out-dir)")
     p.add_argument("--suffix", metavar=".EXT", help="output format for --out-dir (default: the input's)")
+    p.add_argument("--coordinator", metavar="HOST:PORT",
+                   help="run as one of --num-processes processes (jax.distributed; --out-dir): each denoises "
+                        "its share of the inputs")
+    p.add_argument("--num-processes", type=int, metavar="N", help="processes in the run (with --coordinator)")
+    p.add_argument("--process-id", type=int, metavar="I", help="this process, 0..N-1 (with --coordinator)")
 
 
 def _progress(done: int, total: int) -> None:
@@ -41,6 +46,15 @@ def run_dataset(args, given: dict) -> int:
         raise CLIError(f"{', '.join(bad)}: not supported with --out-dir (one setting for every mesh)")
     if not args.paths:
         raise CLIError("--out-dir needs at least one input (file, directory or glob)")
+    cluster = (args.coordinator, args.num_processes, args.process_id)
+    if any(v is not None for v in cluster):
+        if any(v is None for v in cluster):
+            raise CLIError("--coordinator, --num-processes and --process-id go together")
+        if not 0 <= args.process_id < args.num_processes:
+            raise CLIError(f"--process-id must be in 0..{args.num_processes - 1}, got {args.process_id}")
+        import jax
+
+        jax.distributed.initialize(args.coordinator, args.num_processes, args.process_id)
     summary = denoise_files(args.paths, args.out_dir, args.method, given, batch_size=args.batch_size,
                             ladder=args.ladder, overwrite=args.force, suffix=args.suffix, report=args.report, progress=_progress)
     for rec in summary.records:

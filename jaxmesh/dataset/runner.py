@@ -2,16 +2,7 @@
 shape, reads ahead and writes behind, a JSON-lines report, resumable, with
 failures isolated.
 
-**Buckets.**  Mesh i has V_i vertices, F_i faces, E_i edges.  Padded sizes are
-rounded up a geometric ladder (``LADDER_RATIO`` = 2^¼ apart, from
-``LADDER_START``), so meshes whose vertex counts round to the same rung share
-one padded shape and one compiled program; each dimension wastes at most
-2^¼ − 1 ≈ 19% (plus the one padding vertex and edge that
-:func:`~jaxmesh.batch.pad_batch` needs).  A bucket is cut into batches of
-``batch_size``; its last batch is filled up to the next power of two with
-copies of its first mesh (computed, never written), so a bucket compiles at
-most log₂(batch_size) + 1 programs.  ``waste`` in the summary is padded
-vertex slots computed over real ones.
+Planning (files, sizes, buckets): :mod:`.plan`.
 
 **Runs.**  Every mesh is denoised in its own unit frame (:func:`~jaxmesh.
 transforms.unit_frame`, as the CLI does), with one method and one parameter
@@ -35,74 +26,21 @@ import concurrent.futures
 import dataclasses
 import functools
 import json
-import math
 import queue
 import threading
 import time
 from pathlib import Path
-from typing import Any, Callable, Iterable, Sequence
+from typing import Any, Callable, Sequence
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .batch import pad_batch, unpad
-from .mesh import Mesh
+from ..batch import pad_batch, unpad
+from ..mesh import Mesh
+from .plan import LADDER_RATIO, LADDER_START, MESH_SUFFIXES, Batch, expand_inputs, peek_sizes, plan_batches, rung
 
-__all__ = ["LADDER_START", "LADDER_RATIO", "rung", "plan_batches", "Batch", "DatasetSummary",
-           "expand_inputs", "denoise_files", "MESH_SUFFIXES", "peek_sizes"]
-
-LADDER_START = 64
-LADDER_RATIO = 2 ** 0.25
-MESH_SUFFIXES = (".ply", ".obj", ".off", ".stl")
-
-
-def rung(n: int, ratio: float = LADDER_RATIO) -> int:
-    """The smallest ladder size ≥ n: ⌈LADDER_START · ratio^k⌉ for the least k ≥ 0."""
-    if not ratio > 1:
-        raise ValueError(f"the ladder ratio must be > 1, got {ratio!r}")
-    if n <= LADDER_START:
-        return LADDER_START
-    k = math.ceil(math.log(n / LADDER_START, ratio) - 1e-12)
-    size = math.ceil(LADDER_START * ratio ** k)
-    return size if size >= n else math.ceil(LADDER_START * ratio ** (k + 1))
-
-
-@dataclasses.dataclass(frozen=True)
-class Batch:
-    """One call of a compiled program: ``items`` (indices into the plan's sizes,
-    the real meshes), ``fill`` copies of the first item added to reach the
-    batch's size, and the padded (vertices, faces, edges) ``shape``."""
-
-    items: tuple[int, ...]
-    fill: int
-    shape: tuple[int, int, int]
-
-
-def _pow2_at_least(n: int) -> int:
-    return 1 << max(0, (n - 1).bit_length())
-
-
-def plan_batches(sizes: Sequence[tuple[int, int, int]], batch_size: int = 16,
-                 ratio: float = LADDER_RATIO) -> list[Batch]:
-    """Group meshes of (V, F, E) ``sizes`` into batches (module docstring): every
-    index appears in exactly one batch; batches of one bucket share a shape.
-    ``ratio``: the ladder's step (fewer shapes and compiles, more padding)."""
-    if isinstance(batch_size, bool) or not isinstance(batch_size, int) or batch_size < 1:
-        raise ValueError(f"batch_size must be a positive int, got {batch_size!r}")
-    buckets: dict[int, list[int]] = {}
-    for i, (v, _, _) in enumerate(sizes):
-        buckets.setdefault(rung(v + 1, ratio), []).append(i)
-    out = []
-    for v_pad in sorted(buckets):
-        members = buckets[v_pad]
-        shape = (v_pad, rung(max(sizes[i][1] for i in members), ratio),
-                 rung(max(sizes[i][2] for i in members) + 1, ratio))
-        for start in range(0, len(members), batch_size):
-            chunk = tuple(members[start:start + batch_size])
-            out.append(Batch(chunk, min(batch_size, _pow2_at_least(len(chunk))) - len(chunk), shape))
-    return out
-
+__all__ = ["DatasetSummary", "denoise_files"]
 
 @dataclasses.dataclass(frozen=True)
 class DatasetSummary:
@@ -123,29 +61,12 @@ class DatasetSummary:
                 "padding_waste": self.waste, "seconds": self.seconds}
 
 
-def expand_inputs(paths: Iterable[str]) -> list[Path]:
-    """Files named directly, every mesh file (by suffix) in a named directory
-    (sorted, not recursive), or the matches of a glob pattern; each once, in order."""
-    out: list[Path] = []
-    for p in paths:
-        path = Path(p)
-        if path.is_dir():
-            found = sorted(q for q in path.iterdir() if q.suffix.lower() in MESH_SUFFIXES and q.is_file())
-        elif any(ch in p for ch in "*?["):
-            anchor = Path(path.anchor) if path.is_absolute() else Path(".")
-            found = sorted(anchor.glob(str(path.relative_to(anchor)) if path.is_absolute() else p))
-        else:
-            found = [path]
-        out += [q for q in found if q not in out]
-    return out
-
-
 @functools.partial(jax.jit, static_argnames=("method", "statics"))
 def _run_padded(mesh: Mesh, continuous: dict, method: str, statics: tuple):
     """The method on every mesh of a padded batch, each in its own unit frame:
     (vertices (B, V, 3), diverged (B,))."""
-    from .denoise import METHODS, diverged
-    from .transforms import from_frame, to_frame, unit_frame
+    from ..denoise import METHODS, diverged
+    from ..transforms import from_frame, to_frame, unit_frame
 
     def one(m):
         centre, scale = unit_frame(m)
@@ -157,7 +78,7 @@ def _run_padded(mesh: Mesh, continuous: dict, method: str, statics: tuple):
 
 
 def _split_params(method: str, params: dict) -> tuple[dict, tuple]:
-    from .denoise import METHODS
+    from ..denoise import METHODS
 
     m = METHODS[method]
     full = m.resolve(**params)
@@ -172,7 +93,7 @@ def _output_for(path: Path, out_dir: Path, suffix: str | None) -> Path:
 
 def _check(method: str, params: dict, suffix: str | None) -> str:
     """The method's registry name, every parameter checked before any file is read."""
-    from .denoise import METHODS, as_method
+    from ..denoise import METHODS, as_method
 
     if method == "auto":
         if params:
@@ -188,8 +109,9 @@ def _check(method: str, params: dict, suffix: str | None) -> str:
     return method
 
 
-def _collect(inputs, out_dir: Path, suffix: str | None, overwrite: bool, method: str):
-    """(inputs and outputs, one record each); existing outputs are marked skipped."""
+def _collect(inputs, out_dir: Path, suffix: str | None, overwrite: bool, method: str, index: int, count: int):
+    """(this share's inputs and outputs, one record each); existing outputs are
+    marked skipped.  Name clashes are checked over all shares."""
     files = expand_inputs([str(p) for p in inputs])
     if not files:
         raise ValueError("no input meshes found")
@@ -197,37 +119,12 @@ def _collect(inputs, out_dir: Path, suffix: str | None, overwrite: bool, method:
     outs = [o for _, o in items]
     if len(set(outs)) != len(outs):
         raise ValueError("two inputs map to the same output name; give them distinct stems")
+    items = items[index::count]
     records = [{"input": str(src), "output": str(out), "method": method} for src, out in items]
     for rec, (_, out) in zip(records, items):
         if out.exists() and not overwrite:
             rec["status"] = "skipped"
     return items, records
-
-
-def peek_sizes(path: Path) -> tuple[int, int] | None:
-    """(vertices, faces) from a PLY or OFF header (the first 64 KiB), or None when
-    the file is of another format or its header cannot be read that way.  An
-    estimate for planning only: the mesh is checked when it is loaded."""
-    suffix = path.suffix.lower()
-    try:
-        with open(path, "rb") as fh:
-            head = fh.read(65536).decode("latin-1")
-        if suffix == ".ply":
-            counts = {}
-            for line in head.split("end_header")[0].splitlines():
-                tok = line.split()
-                if len(tok) == 3 and tok[0] == "element":
-                    counts[tok[1]] = int(tok[2])
-            return (counts["vertex"], counts["face"]) if "end_header" in head else None
-        if suffix == ".off":
-            lines = [ln.split("#")[0].strip() for ln in head.splitlines()]
-            lines = [ln for ln in lines if ln]
-            first = lines[0][3:].split() if lines[0].startswith("OFF") else None
-            tok = first if first else lines[1].split()
-            return int(tok[0]), int(tok[1])
-    except (OSError, ValueError, KeyError, IndexError):
-        return None
-    return None
 
 
 def _read_sizes(items: list[tuple[Path, Path]], load: Callable, records: list) -> list[int]:
@@ -311,14 +208,14 @@ def _precompile(plan: list[Batch], method: str, params: dict, dtype, workers: in
 
 def _run_single(mesh, method: str, params: dict, record: dict):
     """One mesh by itself (auto, or a method with auxiliary inputs): the result or the exception."""
-    from .denoise import denoise_in_unit_frame
+    from ..denoise import denoise_in_unit_frame
 
     if not isinstance(mesh, Mesh):
         return mesh
     try:
         if method != "auto":
             return denoise_in_unit_frame(mesh, method, **params)
-        from .tune import choose_denoiser
+        from ..tune import choose_denoiser
 
         choice = choose_denoiser(mesh)
         record.update(chosen=choice.method, params=choice.params)
@@ -331,23 +228,30 @@ def denoise_files(inputs: Sequence[str | Path], out_dir: str | Path, method: str
                   params: dict | None = None, *, batch_size: int = 16, ladder: float = LADDER_RATIO,
                   overwrite: bool = False,
                   suffix: str | None = None, report: str | Path | None = None,
-                  progress: Callable[[int, int], None] | None = None) -> DatasetSummary:
+                  progress: Callable[[int, int], None] | None = None,
+                  share: tuple[int, int] | None = None) -> DatasetSummary:
     """Denoise every mesh of ``inputs`` (files, directories, glob patterns:
     :func:`expand_inputs`) with ``method`` and ``params`` into ``out_dir``
     (same file name; ``suffix`` changes the format), in size buckets (module
     docstring).  ``report``: a JSON-lines file, one line per input, appended to.
     ``progress(done, total)`` is called after each batch.  Existing outputs are
     skipped unless ``overwrite``.  ``ladder``: the ratio between padded sizes
-    (larger: fewer compiles, more padding).  Returns a :class:`DatasetSummary`."""
-    from .denoise import METHODS
-    from .io import load, save
+    (larger: fewer compiles, more padding).  ``share`` = (i, n): this process
+    takes every n-th input from the i-th (default ``(jax.process_index(),
+    jax.process_count())``, so after ``jax.distributed.initialize`` each process
+    of a cluster denoises its own share).  Returns a :class:`DatasetSummary`."""
+    from ..denoise import METHODS
+    from ..io import load, save
 
     start = time.perf_counter()
     params = dict(params or {})
     method = _check(method, params, suffix)
     rung(LADDER_START + 1, ladder)            # the ladder checked before any file is read
     out_dir = Path(out_dir)
-    items, records = _collect(inputs, out_dir, suffix, overwrite, method)
+    index, count = share if share is not None else (jax.process_index(), jax.process_count())
+    if not 0 <= index < count:
+        raise ValueError(f"share {share}: the index must be in [0, count)")
+    items, records = _collect(inputs, out_dir, suffix, overwrite, method, index, count)
     out_dir.mkdir(parents=True, exist_ok=True)
     log = _Report(report)
     todo = [k for k, rec in enumerate(records) if "status" not in rec]

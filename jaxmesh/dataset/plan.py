@@ -1,0 +1,116 @@
+"""Planning a dataset run: which files, their sizes, and the padded batch shapes.
+
+**Buckets.**  Mesh i has V_i vertices, F_i faces, E_i edges.  Padded sizes are
+rounded up a geometric ladder (``LADDER_RATIO`` = 2^¼ apart by default, from
+``LADDER_START``), so meshes whose vertex counts round to the same rung share
+one padded shape and one compiled program; each dimension wastes at most
+ratio − 1 (plus the one padding vertex and edge that
+:func:`~jaxmesh.batch.pad_batch` needs).  A bucket is cut into batches of
+``batch_size``; its last batch is filled up to the next power of two with
+copies of its first mesh (computed, never written), so a bucket compiles at
+most log₂(batch_size) + 1 programs.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+from typing import Iterable, Sequence
+
+__all__ = ["LADDER_START", "LADDER_RATIO", "MESH_SUFFIXES", "rung", "Batch", "plan_batches", "expand_inputs",
+           "peek_sizes"]
+
+LADDER_START = 64
+LADDER_RATIO = 2 ** 0.25
+MESH_SUFFIXES = (".ply", ".obj", ".off", ".stl")
+
+
+def rung(n: int, ratio: float = LADDER_RATIO) -> int:
+    """The smallest ladder size ≥ n: ⌈LADDER_START · ratio^k⌉ for the least k ≥ 0."""
+    if not ratio > 1:
+        raise ValueError(f"the ladder ratio must be > 1, got {ratio!r}")
+    if n <= LADDER_START:
+        return LADDER_START
+    k = math.ceil(math.log(n / LADDER_START, ratio) - 1e-12)
+    size = math.ceil(LADDER_START * ratio ** k)
+    return size if size >= n else math.ceil(LADDER_START * ratio ** (k + 1))
+
+
+@dataclasses.dataclass(frozen=True)
+class Batch:
+    """One call of a compiled program: ``items`` (indices into the plan's sizes,
+    the real meshes), ``fill`` copies of the first item added to reach the
+    batch's size, and the padded (vertices, faces, edges) ``shape``."""
+
+    items: tuple[int, ...]
+    fill: int
+    shape: tuple[int, int, int]
+
+
+def _pow2_at_least(n: int) -> int:
+    return 1 << max(0, (n - 1).bit_length())
+
+
+def plan_batches(sizes: Sequence[tuple[int, int, int]], batch_size: int = 16,
+                 ratio: float = LADDER_RATIO) -> list[Batch]:
+    """Group meshes of (V, F, E) ``sizes`` into batches (module docstring): every
+    index appears in exactly one batch; batches of one bucket share a shape.
+    ``ratio``: the ladder's step (fewer shapes and compiles, more padding)."""
+    if isinstance(batch_size, bool) or not isinstance(batch_size, int) or batch_size < 1:
+        raise ValueError(f"batch_size must be a positive int, got {batch_size!r}")
+    buckets: dict[int, list[int]] = {}
+    for i, (v, _, _) in enumerate(sizes):
+        buckets.setdefault(rung(v + 1, ratio), []).append(i)
+    out = []
+    for v_pad in sorted(buckets):
+        members = buckets[v_pad]
+        shape = (v_pad, rung(max(sizes[i][1] for i in members), ratio),
+                 rung(max(sizes[i][2] for i in members) + 1, ratio))
+        for start in range(0, len(members), batch_size):
+            chunk = tuple(members[start:start + batch_size])
+            out.append(Batch(chunk, min(batch_size, _pow2_at_least(len(chunk))) - len(chunk), shape))
+    return out
+
+
+def expand_inputs(paths: Iterable[str]) -> list[Path]:
+    """Files named directly, every mesh file (by suffix) in a named directory
+    (sorted, not recursive), or the matches of a glob pattern; each once, in order."""
+    out: list[Path] = []
+    for p in paths:
+        path = Path(p)
+        if path.is_dir():
+            found = sorted(q for q in path.iterdir() if q.suffix.lower() in MESH_SUFFIXES and q.is_file())
+        elif any(ch in p for ch in "*?["):
+            anchor = Path(path.anchor) if path.is_absolute() else Path(".")
+            found = sorted(anchor.glob(str(path.relative_to(anchor)) if path.is_absolute() else p))
+        else:
+            found = [path]
+        out += [q for q in found if q not in out]
+    return out
+
+
+def peek_sizes(path: Path) -> tuple[int, int] | None:
+    """(vertices, faces) from a PLY or OFF header (the first 64 KiB), or None when
+    the file is of another format or its header cannot be read that way.  An
+    estimate for planning only: the mesh is checked when it is loaded."""
+    suffix = path.suffix.lower()
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(65536).decode("latin-1")
+        if suffix == ".ply":
+            counts = {}
+            for line in head.split("end_header")[0].splitlines():
+                tok = line.split()
+                if len(tok) == 3 and tok[0] == "element":
+                    counts[tok[1]] = int(tok[2])
+            return (counts["vertex"], counts["face"]) if "end_header" in head else None
+        if suffix == ".off":
+            lines = [ln.split("#")[0].strip() for ln in head.splitlines()]
+            lines = [ln for ln in lines if ln]
+            first = lines[0][3:].split() if lines[0].startswith("OFF") else None
+            tok = first if first else lines[1].split()
+            return int(tok[0]), int(tok[1])
+    except (OSError, ValueError, KeyError, IndexError):
+        return None
+    return None
