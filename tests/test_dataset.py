@@ -133,9 +133,10 @@ def test_bad_arguments_are_refused_before_any_work(tmp_path, capsys):
     with pytest.raises(ValueError, match="ladder ratio"):
         denoise_files([str(tmp_path)], tmp_path / "out", "taubin", ladder=1.0)
     assert not (tmp_path / "out").exists()
-    assert main(["denoise", "--out-dir", str(tmp_path / "o"), str(tmp_path), "--method", "kernel", "--lam",
-                 "auto"]) == 1
+    assert main(["denoise", "--out-dir", str(tmp_path / "o"), str(tmp_path), "--method", "kernel", "--tune"]) == 1
     assert "not supported with --out-dir" in capsys.readouterr().err
+    with pytest.raises(ValueError, match="only continuous parameters"):
+        denoise_files([str(tmp_path)], tmp_path / "out", "taubin", {"iterations": "auto"})
     with pytest.raises(ValueError, match="pad_to"):
         jaxmesh.batch.pad_batch([jaxmesh.Mesh.from_arrays(np.eye(3), np.array([[0, 1, 2]]))], (3, 1, 4))
 
@@ -167,3 +168,22 @@ def test_two_processes_with_jax_distributed_equal_one(tmp_path):
     assert sorted(p.name for p in (tmp_path / "two").iterdir()) == one
     for name in one:
         assert (tmp_path / "one" / name).read_bytes() == (tmp_path / "two" / name).read_bytes()
+
+
+@pytest.mark.slow   # 60 s: tuning compiles per batch shape, and again per mesh for the reference
+@pytest.mark.filterwarnings("ignore::jaxmesh.mesh.MeshWarning")
+@pytest.mark.filterwarnings("ignore::jaxmesh.tune.BlindTuningWarning")
+def test_lam_auto_tunes_each_mesh_as_tune_does(tmp_path):
+    """``lam="auto"``: blind tuning per mesh in padded batches (tune_batch); each
+    output and λ equal :func:`jaxmesh.tune.tune` on that mesh alone."""
+    from jaxmesh.tune import tune
+
+    paths = _write_dataset(tmp_path / "in", 3)
+    s = denoise_files([str(tmp_path / "in")], tmp_path / "out", "kernel", {"lam": "auto", "iterations": 2},
+                      batch_size=2)
+    assert (s.done, s.failed) == (3, 0)
+    for p, rec in zip(paths, sorted(s.records, key=lambda r: r["input"])):
+        want = tune(jaxmesh.load(str(p)), None, "kernel", names=["lam"], iterations=2)
+        assert rec["params"]["lam"] == pytest.approx(float(want.params["lam"]), rel=1e-6)
+        np.testing.assert_allclose(jaxmesh.load(str(tmp_path / "out" / p.name)).vertices, want.mesh.vertices,
+                                   atol=1e-9)

@@ -91,6 +91,11 @@ def _output_for(path: Path, out_dir: Path, suffix: str | None) -> Path:
     return out_dir / (path.stem + (suffix or path.suffix))
 
 
+def _tuned(params: dict) -> list[str]:
+    """The parameters given as "auto": tuned blind, per mesh (SURE, :func:`~jaxmesh.tune.tune_batch`)."""
+    return sorted(k for k, v in params.items() if isinstance(v, str) and v == "auto")
+
+
 def _check(method: str, params: dict, suffix: str | None) -> str:
     """The method's registry name, every parameter checked before any file is read."""
     from ..denoise import METHODS, as_method
@@ -102,7 +107,11 @@ def _check(method: str, params: dict, suffix: str | None) -> str:
         m = as_method(method)
         if METHODS.get(m.name) is not m:
             raise ValueError("denoise_files takes a registered method name (or 'auto')")
-        m.resolve(**params)
+        for k in _tuned(params):
+            if k not in m.params or m.params[k].kind != "continuous":
+                raise ValueError(f"{k}='auto': only continuous parameters of {m.name} can be tuned "
+                                 f"({', '.join(n for n, q in m.params.items() if q.kind == 'continuous')})")
+        m.resolve(**{k: v for k, v in params.items() if k not in _tuned(params)})
         method = m.name
     if suffix is not None and suffix.lower() not in MESH_SUFFIXES:
         raise ValueError(f"suffix must be one of {MESH_SUFFIXES}, got {suffix!r}")
@@ -155,8 +164,7 @@ class _Tally:
 
 
 def _run_batch(batch: Batch, meshes: list, method: str, params: dict, tally: _Tally, compiled: dict) -> dict:
-    """{item: denoised mesh or the exception} for one padded batch."""
-    cont, statics = _split_params(method, params)
+    """{item: denoised mesh, (mesh, tuned parameters) or the exception} for one padded batch."""
     results = {k: mesh for k, mesh in zip(batch.items, meshes) if not isinstance(mesh, Mesh)}
     good = [(k, mesh) for k, mesh in zip(batch.items, meshes) if isinstance(mesh, Mesh)]
     if not good:
@@ -168,12 +176,24 @@ def _run_batch(batch: Batch, meshes: list, method: str, params: dict, tally: _Ta
     shape = tuple(s if s >= n else rung(n) for s, n in zip(batch.shape, need))
     pb = pad_batch(group, shape)
     tally.programs.add((shape, len(group)))
-    ahead = compiled.get((shape, len(group)))
-    x, bad = ahead.result()(pb.mesh, cont) if ahead is not None else _run_padded(pb.mesh, cont, method, statics)
-    singles, bad = unpad(pb, x), np.asarray(bad)
-    for j, (k, mesh) in enumerate(good):
-        results[k] = (FloatingPointError(f"{method} diverged on this mesh with {params}") if bad[j]
-                      else mesh.with_vertices(singles[j].vertices))
+    if _tuned(params):
+        from ..tune import tune_batch
+
+        fixed = {k: v for k, v in params.items() if k not in _tuned(params)}
+        res, outs = tune_batch(pb, method=method, names=_tuned(params), **fixed)
+        for j, (k, mesh) in enumerate(good):
+            values = {**fixed, **{n: float(res.params[n][j]) for n in _tuned(params)}}
+            ok = bool(np.all(np.isfinite(np.asarray(outs[j].vertices))))
+            results[k] = ((mesh.with_vertices(outs[j].vertices), values) if ok else
+                          FloatingPointError(f"{method} tuned to a non-finite result ({values})"))
+    else:
+        cont, statics = _split_params(method, params)
+        ahead = compiled.get((shape, len(group)))
+        x, bad = ahead.result()(pb.mesh, cont) if ahead is not None else _run_padded(pb.mesh, cont, method, statics)
+        singles, bad = unpad(pb, x), np.asarray(bad)
+        for j, (k, mesh) in enumerate(good):
+            results[k] = (FloatingPointError(f"{method} diverged on this mesh with {params}") if bad[j]
+                          else mesh.with_vertices(singles[j].vertices))
     tally.real += sum(mesh.num_vertices for _, mesh in good)
     tally.padded += shape[0] * len(group)
     return results
@@ -213,6 +233,12 @@ def _run_single(mesh, method: str, params: dict, record: dict):
     if not isinstance(mesh, Mesh):
         return mesh
     try:
+        if method != "auto" and _tuned(params):
+            from ..tune import tune
+
+            fixed = {k: v for k, v in params.items() if k not in _tuned(params)}
+            r = tune(mesh, None, method, names=_tuned(params), **fixed)
+            return r.mesh, {**fixed, **{n: float(r.params[n]) for n in _tuned(params)}}
         if method != "auto":
             return denoise_in_unit_frame(mesh, method, **params)
         from ..tune import choose_denoiser
@@ -265,7 +291,8 @@ def denoise_files(inputs: Sequence[str | Path], out_dir: str | Path, method: str
         plan = [dataclasses.replace(b, items=tuple(todo[i] for i in b.items)) for b in plan]
     else:
         plan = [Batch((k,), 0, (0, 0, 0)) for k in todo]
-    compiled = _precompile(plan, method, params, jnp.result_type(float)) if batched else {}
+    ahead = batched and not _tuned(params)
+    compiled = _precompile(plan, method, params, jnp.result_type(float)) if ahead else {}
     tally, writer, finished = _Tally(), _Writer(save, overwrite, log), 0
     try:
         for batch, meshes in _read_ahead(plan, items, load):
@@ -275,6 +302,8 @@ def denoise_files(inputs: Sequence[str | Path], out_dir: str | Path, method: str
             seconds = round((time.perf_counter() - t0) / len(batch.items), 4)
             for k in batch.items:
                 r = results[k]
+                if isinstance(r, tuple):
+                    r, records[k]["params"] = r
                 if isinstance(r, Mesh):
                     records[k].update(status="ok", vertices=r.num_vertices, faces=r.num_faces, seconds=seconds)
                     records[k].setdefault("params", params)
