@@ -77,16 +77,6 @@ def _run_padded(mesh: Mesh, continuous: dict, method: str, statics: tuple):
     return jax.vmap(one)(mesh)
 
 
-def _split_params(method: str, params: dict) -> tuple[dict, tuple]:
-    from ..denoise import METHODS
-
-    m = METHODS[method]
-    full = m.resolve(**params)
-    cont = {k: jnp.asarray(v, jnp.result_type(float)) for k, v in full.items() if m.params[k].kind == "continuous"}
-    statics = tuple(sorted((k, v) for k, v in full.items() if k not in cont and m.params[k].kind != "aux"))
-    return cont, statics
-
-
 def _output_for(path: Path, out_dir: Path, suffix: str | None) -> Path:
     return out_dir / (path.stem + (suffix or path.suffix))
 
@@ -187,7 +177,9 @@ def _run_batch(batch: Batch, meshes: list, method: str, params: dict, tally: _Ta
             results[k] = ((mesh.with_vertices(outs[j].vertices), values) if ok else
                           FloatingPointError(f"{method} tuned to a non-finite result ({values})"))
     else:
-        cont, statics = _split_params(method, params)
+        from ..denoise import METHODS
+
+        cont, statics = METHODS[method].split(**params)
         ahead = compiled.get((shape, len(group)))
         x, bad = ahead.result()(pb.mesh, cont) if ahead is not None else _run_padded(pb.mesh, cont, method, statics)
         singles, bad = unpad(pb, x), np.asarray(bad)
@@ -214,7 +206,9 @@ def _precompile(plan: list[Batch], method: str, params: dict, dtype, workers: in
     """Compile every planned (shape, batch size) on ``workers`` threads, ahead of
     the stream (XLA compiles without the GIL, so this overlaps reading):
     {(shape, count): future of the compiled program}."""
-    cont, statics = _split_params(method, params)
+    from ..denoise import METHODS
+
+    cont, statics = METHODS[method].split(**params)
     pool = concurrent.futures.ThreadPoolExecutor(workers, thread_name_prefix="jaxmesh-compile")
     jobs = {}
     for b in plan:

@@ -126,6 +126,17 @@ class Method:
             raise ValueError(f"{self.name}: {problem}")
         return full
 
+    def split(self, **params) -> tuple[dict[str, Any], tuple]:
+        """(continuous parameters as float arrays, the others as a sorted hashable
+        tuple) of the resolved parameters, auxiliary inputs left out: the traced
+        and the static arguments of one compiled call (defaults included, so every
+        continuous value is traced and a new value never recompiles)."""
+        full = self.resolve(**params)
+        cont = {k: jnp.asarray(v, jnp.result_type(float)) for k, v in full.items()
+                if self.params[k].kind == "continuous"}
+        statics = tuple(sorted((k, v) for k, v in full.items() if k not in cont and self.params[k].kind != "aux"))
+        return cont, statics
+
     def __call__(self, mesh: Mesh, **params) -> Mesh:
         out = self.function(mesh, **self.resolve(**params))
         if not isinstance(out.vertices, jax.core.Tracer) and not bool(jnp.isfinite(out.vertices).all()):

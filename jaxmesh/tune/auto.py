@@ -157,16 +157,6 @@ def _run(mesh: Mesh, x, continuous: dict, aux: dict, method: str, statics: tuple
     return METHODS[method](mesh.with_vertices(x), **continuous, **dict(statics), **aux).vertices
 
 
-def _split(method: str, params: dict) -> tuple[dict, tuple]:
-    from ..denoise import METHODS
-
-    m = METHODS[method]
-    full = m.resolve(**params)
-    cont = {k: jnp.asarray(v, jnp.result_type(float)) for k, v in params.items() if m.params[k].kind == "continuous"}
-    statics = tuple(sorted((k, v) for k, v in full.items() if k not in cont and m.params[k].kind != "aux"))
-    return cont, statics
-
-
 @functools.partial(jax.jit, static_argnames=("count",))
 def _taubin_path(mesh: Mesh, inputs, targets, nu, ell, lam, mu, count: int):
     """Mean edge-tilt risk Σ‖A(x_t − target)‖²/F over the draws after every Taubin
@@ -197,7 +187,9 @@ def _taubin_rows(mesh: Mesh, inputs, targets, nu, ell, constant: float) -> list:
 
 
 def _denoise(mesh: Mesh, x, candidate: Candidate, aux: dict):
-    cont, statics = _split(candidate.method, candidate.params)
+    from ..denoise import METHODS
+
+    cont, statics = METHODS[candidate.method].split(**candidate.params)
     return _run(mesh, x, cont, aux, candidate.method, statics)
 
 
