@@ -57,8 +57,10 @@ def _write_dataset(folder, count=7):
 
 
 @pytest.mark.filterwarnings("ignore::jaxmesh.mesh.MeshWarning")
-@pytest.mark.parametrize("method,params", [("taubin", {"iterations": 7}), ("kernel", {"lam": 0.02, "iterations": 3}),
-                                           ("bilateral_normal", {"normal_iterations": 2, "vertex_iterations": 3})])
+@pytest.mark.parametrize("method,params", [
+    ("taubin", {"iterations": 7}),
+    pytest.param("kernel", {"lam": 0.02, "iterations": 3}, marks=pytest.mark.slow),
+    ("bilateral_normal", {"normal_iterations": 2, "vertex_iterations": 3})])
 def test_outputs_equal_per_mesh_calls(tmp_path, method, params):
     paths = _write_dataset(tmp_path / "in", 3 if method == "bilateral_normal" else 7)   # compiled per mesh
     s = denoise_files([str(tmp_path / "in")], tmp_path / "out", method, params, batch_size=2)
@@ -141,6 +143,7 @@ def test_bad_arguments_are_refused_before_any_work(tmp_path, capsys):
         jaxmesh.batch.pad_batch([jaxmesh.Mesh.from_arrays(np.eye(3), np.array([[0, 1, 2]]))], (3, 1, 4))
 
 
+@pytest.mark.slow   # three subprocesses, each importing JAX and compiling
 @pytest.mark.filterwarnings("ignore::jaxmesh.mesh.MeshWarning")
 def test_two_processes_with_jax_distributed_equal_one(tmp_path):
     """Two CLI processes on 127.0.0.1 (jax.distributed, a free coordinator port),

@@ -205,7 +205,7 @@ def test_hutchinson_trace_matches_the_exact_trace_for_a_linear_smoother():
 
 @pytest.mark.parametrize("estimator", NOISE_ESTIMATORS)
 def test_noise_estimate_recovers_sigma_and_is_equivariant(estimator):
-    clean = sphere(4)
+    clean = sphere(3)
     ell = float(jaxmesh.mean_edge_length(clean))
     for s, along in ((0.1, False), (0.3, False), (0.1, True)):
         noisy = jaxmesh.add_noise(clean, s, 1, along_normals=along)
