@@ -121,8 +121,8 @@ def face_graph(mesh: Mesh) -> FaceGraph:
     patch_edges, patch_edge_mask = _padded_rows(both, fill)
 
     as32 = lambda a: to_device(np.ascontiguousarray(a, dtype=np.int32))  # noqa: E731
-    return FaceGraph(as32(ring), jnp.asarray(ring_mask), as32(patch_edges), jnp.asarray(patch_edge_mask),
-                     as32(edge_faces), as32(edge_apex), jnp.asarray(interior))
+    return FaceGraph(as32(ring), to_device(ring_mask), as32(patch_edges), to_device(patch_edge_mask),
+                     as32(edge_faces), as32(edge_apex), to_device(np.asarray(interior)))
 
 
 def face_centroids(mesh: Mesh) -> Float[Array, "*batch F 3"]:
