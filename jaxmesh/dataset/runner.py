@@ -63,16 +63,13 @@ class DatasetSummary:
 
 @functools.partial(jax.jit, static_argnames=("method", "statics"))
 def _run_padded(mesh: Mesh, continuous: dict, method: str, statics: tuple):
-    """The method on every mesh of a padded batch, each in its own unit frame:
-    (vertices (B, V, 3), diverged (B,))."""
-    from ..denoise import METHODS, diverged
-    from ..transforms import from_frame, to_frame, unit_frame
+    """The method on every mesh of a padded batch, each in its own unit frame
+    (:func:`~jaxmesh.denoise.framed.framed_run`): (vertices (B, V, 3), diverged (B,))."""
+    from ..denoise.framed import framed_run
 
     def one(m):
-        centre, scale = unit_frame(m)
-        work = to_frame(m, centre, scale)
-        out = METHODS[method](work, **continuous, **dict(statics))
-        return from_frame(out, centre, scale).vertices, diverged(work, out)
+        out, bad = framed_run(m, method, **continuous, **dict(statics))
+        return out.vertices, bad
 
     return jax.vmap(one)(mesh)
 
@@ -84,6 +81,11 @@ def _output_for(path: Path, out_dir: Path, suffix: str | None) -> Path:
 def _tuned(params: dict) -> list[str]:
     """The parameters given as "auto": tuned blind, per mesh (SURE, :func:`~jaxmesh.tune.tune_batch`)."""
     return sorted(k for k, v in params.items() if isinstance(v, str) and v == "auto")
+
+
+def _tuned_values(params: dict, tuned: dict) -> dict:
+    """The parameters as run: the fixed ones and each tuned one's value."""
+    return {**{k: v for k, v in params.items() if k not in tuned}, **{k: float(v) for k, v in tuned.items()}}
 
 
 def _check(method: str, params: dict, suffix: str | None) -> str:
@@ -153,7 +155,8 @@ class _Tally:
     padded: int = 0
 
 
-def _run_batch(batch: Batch, meshes: list, method: str, params: dict, tally: _Tally, compiled: dict) -> dict:
+def _run_batch(batch: Batch, meshes: list, method: str, params: dict, tally: _Tally, compiled: dict,
+               ladder: float) -> dict:
     """{item: denoised mesh, (mesh, tuned parameters) or the exception} for one padded batch."""
     results = {k: mesh for k, mesh in zip(batch.items, meshes) if not isinstance(mesh, Mesh)}
     good = [(k, mesh) for k, mesh in zip(batch.items, meshes) if isinstance(mesh, Mesh)]
@@ -163,16 +166,16 @@ def _run_batch(batch: Batch, meshes: list, method: str, params: dict, tally: _Ta
     group += [group[0]] * (batch.fill + len(batch.items) - len(good))
     need = (max(m.num_vertices for m in group) + 1, max(m.num_faces for m in group),
             max(m.num_edges for m in group) + 1)     # the plan's sizes were estimates from the headers
-    shape = tuple(s if s >= n else rung(n) for s, n in zip(batch.shape, need))
+    shape = tuple(s if s >= n else rung(n, ladder) for s, n in zip(batch.shape, need))
     pb = pad_batch(group, shape)
     tally.programs.add((shape, len(group)))
-    if _tuned(params):
+    names = _tuned(params)
+    if names:
         from ..tune import tune_batch
 
-        fixed = {k: v for k, v in params.items() if k not in _tuned(params)}
-        res, outs = tune_batch(pb, method=method, names=_tuned(params), **fixed)
+        res, outs = tune_batch(pb, method=method, names=names, **{k: params[k] for k in params if k not in names})
         for j, (k, mesh) in enumerate(good):
-            values = {**fixed, **{n: float(res.params[n][j]) for n in _tuned(params)}}
+            values = _tuned_values(params, {n: res.params[n][j] for n in names})
             ok = bool(np.all(np.isfinite(np.asarray(outs[j].vertices))))
             results[k] = ((mesh.with_vertices(outs[j].vertices), values) if ok else
                           FloatingPointError(f"{method} tuned to a non-finite result ({values})"))
@@ -227,12 +230,12 @@ def _run_single(mesh, method: str, params: dict, record: dict):
     if not isinstance(mesh, Mesh):
         return mesh
     try:
-        if method != "auto" and _tuned(params):
+        names = _tuned(params) if method != "auto" else []
+        if names:
             from ..tune import tune
 
-            fixed = {k: v for k, v in params.items() if k not in _tuned(params)}
-            r = tune(mesh, None, method, names=_tuned(params), **fixed)
-            return r.mesh, {**fixed, **{n: float(r.params[n]) for n in _tuned(params)}}
+            r = tune(mesh, None, method, names=names, **{k: params[k] for k in params if k not in names})
+            return r.mesh, _tuned_values(params, {n: r.params[n] for n in names})
         if method != "auto":
             return denoise_in_unit_frame(mesh, method, **params)
         from ..tune import choose_denoiser
@@ -291,7 +294,7 @@ def denoise_files(inputs: Sequence[str | Path], out_dir: str | Path, method: str
     try:
         for batch, meshes in _read_ahead(plan, items, load):
             t0 = time.perf_counter()
-            results = (_run_batch(batch, meshes, method, params, tally, compiled) if batched
+            results = (_run_batch(batch, meshes, method, params, tally, compiled, ladder) if batched
                        else {batch.items[0]: _run_single(meshes[0], method, params, records[batch.items[0]])})
             seconds = round((time.perf_counter() - t0) / len(batch.items), 4)
             for k in batch.items:

@@ -9,11 +9,24 @@ value passed back in reproduces the tuned run exactly.
 
 from __future__ import annotations
 
+from jaxtyping import Array
+
 from ..mesh import Mesh
 from ..transforms import from_frame, to_frame, unit_frame
 from .registry import Method, as_method, diverged
 
-__all__ = ["denoise_in_unit_frame"]
+__all__ = ["denoise_in_unit_frame", "framed_run"]
+
+
+def framed_run(mesh: Mesh, method: str | Method, **params) -> tuple[Mesh, Array]:
+    """(``method`` run in ``mesh``'s unit frame and mapped back, whether it
+    diverged): the jittable and vmappable core of :func:`denoise_in_unit_frame`
+    (auxiliary inputs must be given).  The dataset runner vmaps it."""
+    m = as_method(method)
+    centre, scale = unit_frame(mesh)
+    work = to_frame(mesh, centre, scale)
+    out = m(work, **params)
+    return from_frame(out, centre, scale), diverged(work, out)
 
 
 def denoise_in_unit_frame(mesh: Mesh, method: str | Method, **params) -> Mesh:
@@ -22,12 +35,10 @@ def denoise_in_unit_frame(mesh: Mesh, method: str | Method, **params) -> Mesh:
     unless given.  Raises ``FloatingPointError`` when the run diverged
     (non-finite, or a bounding box grown tenfold: :func:`diverged`)."""
     m = as_method(method)
-    centre, scale = unit_frame(mesh)
-    work = to_frame(mesh, centre, scale)
     aux = {k: v for k, v in m.prepare(mesh).items() if params.get(k) is None}
-    out = m(work, **{**params, **aux})
-    if bool(diverged(work, out)):
+    out, bad = framed_run(mesh, m, **{**params, **aux})
+    if bool(bad):
         shown = {k: v for k, v in params.items() if k not in m.aux}
         raise FloatingPointError(f"{m.name} diverged (non-finite or exploding coordinates) with {shown}; "
                                  "use a larger lam, fewer iterations or a smaller step")
-    return from_frame(out, centre, scale)
+    return out

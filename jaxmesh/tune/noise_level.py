@@ -92,13 +92,6 @@ def umbrella_square_row_norms(mesh: Mesh) -> np.ndarray:
     return np.sqrt(np.asarray(k2.multiply(k2).sum(axis=1)).ravel())
 
 
-def _umbrella_residuals(mesh: Mesh) -> np.ndarray:
-    g = umbrella_square_row_norms(mesh)
-    s = _normal_high_pass(mesh, mesh.vertices)
-    ok = g > 0
-    return s[ok] / g[ok]
-
-
 def _normal_high_pass(mesh: Mesh, u) -> np.ndarray:
     """n_i · (K² u)_i, n the noisy mesh's area-weighted vertex normals (host array)."""
     s = jnp.sum(umbrella(mesh, umbrella(mesh, jnp.asarray(u, mesh.dtype))) * vertex_normals(mesh, "area"), axis=-1)
@@ -112,16 +105,15 @@ def _patch_statistic(z2: np.ndarray, patches: sp.csr_matrix, ok: np.ndarray, qua
     return float(np.quantile(mean, quantile)) if mean.size else 0.0
 
 
-def _flat_patch_sigma(mesh: Mesh, quantile: float = 0.1, draws: int = 4) -> float:
-    """σ̂ from the flattest patches, calibrated by simulation (module docstring)."""
-    g = umbrella_square_row_norms(mesh)
+def _flat_patch_sigma(mesh: Mesh, g: np.ndarray, high_pass: np.ndarray, quantile: float = 0.1,
+                      draws: int = 4) -> float:
+    """σ̂ from the flattest patches, calibrated by simulation (module docstring);
+    ``g`` = ‖row_i(K²)‖, ``high_pass`` = n · K² y."""
     ok = g > 0
-    if not ok.any():
-        return 0.0
     gs = np.where(ok, g, 1.0)
     ring = _two_ring(mesh) + sp.identity(mesh.num_vertices, format="csr")
     ring.data[:] = 1
-    observed = _patch_statistic((_normal_high_pass(mesh, mesh.vertices) / gs) ** 2, ring, ok, quantile)
+    observed = _patch_statistic((high_pass / gs) ** 2, ring, ok, quantile)
     n = np.asarray(vertex_normals(mesh, "area"), dtype=np.float64)
     rng = np.random.default_rng(0)
     unit = np.mean([_patch_statistic((_normal_high_pass(mesh, rng.standard_normal((len(g), 1)) * n) / gs) ** 2,
@@ -188,17 +180,22 @@ def estimate_noise(mesh: Mesh, method: str = "min") -> float:
         raise ValueError("estimate_noise takes one mesh; loop over a batch")
     if method not in NOISE_ESTIMATORS:
         raise ValueError(f"method must be one of {NOISE_ESTIMATORS}, got {method!r}")
-    if method == "min":
-        return min(estimate_noise(mesh, "flat"), estimate_noise(mesh, "umbrella"))
-    if method == "flat":
-        if not (umbrella_square_row_norms(mesh) > 0).any():
-            raise ValueError("estimate_noise: the mesh has no vertex with neighbours")
-        return _flat_patch_sigma(mesh)
-    r = _quadric_residuals(mesh) if method == "quadric" else _umbrella_residuals(mesh)
-    if r.size == 0:
-        if method == "quadric":   # too small or too irregular for a quadric: fall back
-            return estimate_noise(mesh, "umbrella")
+    if method == "quadric":
+        r = _quadric_residuals(mesh)
+        # too small or too irregular for a quadric: fall back
+        return _mad_sigma(r) if r.size else estimate_noise(mesh, "umbrella")
+    g = umbrella_square_row_norms(mesh)           # K² and n·K²y once, for either estimator or both
+    ok = g > 0
+    if not ok.any():
         raise ValueError("estimate_noise: the mesh has no vertex with neighbours")
+    high_pass = _normal_high_pass(mesh, mesh.vertices)
+    umbrella_sigma = _mad_sigma(high_pass[ok] / g[ok]) if method != "flat" else np.inf
+    flat_sigma = _flat_patch_sigma(mesh, g, high_pass) if method != "umbrella" else np.inf
+    return min(umbrella_sigma, flat_sigma)
+
+
+def _mad_sigma(r: np.ndarray) -> float:
+    """1.4826 · MAD(r): σ of the Gaussian part of r, robust to a minority of outliers."""
     return float(_MAD_TO_SIGMA * np.median(np.abs(r - np.median(r))))
 
 
