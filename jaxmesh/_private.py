@@ -39,8 +39,27 @@ def safe_normalize(x: Float[Array, "*batch d"], axis: int = -1) -> Float[Array, 
     return jnp.where(n > 0, x / jnp.where(n > 0, n, 1), 0)
 
 
+def lift(a: Array, ndim: int) -> Array:
+    """``a`` with leading singleton axes so that it has ``ndim`` axes.
+
+    The explicit form of NumPy's rank promotion: per-vertex data of shape (V, d)
+    meets a batch (*batch, V, d) as ``lift(a, x.ndim)``.  The library writes its
+    broadcasts this way, so it runs under ``jax_numpy_rank_promotion="raise"``
+    (the test suite's setting)."""
+    have = jnp.ndim(a)
+    return jnp.reshape(a, (1,) * (ndim - have) + jnp.shape(a)) if have < ndim else a
+
+
+def lift_all(*arrays: Array) -> tuple[Array, ...]:
+    """Each array lifted (see :func:`lift`) to the largest rank among them."""
+    ndim = max(jnp.ndim(a) for a in arrays)
+    return tuple(lift(a, ndim) for a in arrays)
+
+
 def safe_divide(num: Array, den: Array) -> Array:
-    """num / den where den != 0, else 0 (double ``where``: no NaN in gradients)."""
+    """num / den where den != 0, else 0 (double ``where``: no NaN in gradients).
+    ``num`` and ``den`` of different ranks broadcast as NumPy would (leading axes)."""
+    num, den = lift_all(num, den)
     ok = den != 0
     return jnp.where(ok, num / jnp.where(ok, den, 1), 0)
 

@@ -13,7 +13,7 @@ from typing import Literal
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from ._private import safe_norm, safe_normalize, segment_sum_rows, segment_sum_scalars
+from ._private import lift, safe_norm, safe_normalize, segment_sum_rows, segment_sum_scalars
 from .mesh import Mesh
 
 __all__ = [
@@ -49,7 +49,7 @@ def mean_edge_length(mesh: Mesh) -> Float[Array, "*batch"]:
     Self-loop edges (i == j) never occur in a built mesh; they are the padding
     of :func:`jaxmesh.batch.pad_batch` and are not counted."""
     real = (mesh.edges[:, 0] != mesh.edges[:, 1]).astype(mesh.dtype)
-    return jnp.sum(edge_lengths(mesh) * real, axis=-1) / jnp.maximum(jnp.sum(real), 1)
+    return jnp.sum(edge_lengths(mesh) * lift(real, mesh.vertices.ndim - 1), axis=-1) / jnp.maximum(jnp.sum(real), 1)
 
 
 def face_corners(mesh: Mesh) -> Float[Array, "*batch F 3 3"]:

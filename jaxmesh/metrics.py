@@ -17,7 +17,7 @@ from jaxtyping import Array, Float
 from .geometry import face_normals
 from .mesh import Mesh
 from .operators import gradient_magnitude, umbrella
-from ._private import safe_divide, safe_norm, segment_sum_rows
+from ._private import lift, safe_divide, safe_norm, segment_sum_rows
 
 __all__ = [
     "visual_error",
@@ -52,7 +52,7 @@ def visual_error(reference: Mesh, estimate) -> Float[Array, "*batch"]:
     Both terms use the reference's connectivity.  Units: length squared.
     """
     x = _positions(reference, estimate)
-    v = reference.vertices
+    v = lift(reference.vertices, x.ndim)
     diff = v - x
     gl = umbrella(reference, diff)  # GL is linear: GL(v) - GL(x) = -K(v - x)
     m = reference.num_vertices
@@ -72,7 +72,7 @@ def nonlinear_diffusion_operator(
     g = cauchy_weight(gradient_magnitude(mesh, x, variant), c)
     phi = (g[..., mesh.src] + g[..., mesh.dst])[..., None]
     terms = phi * (x[..., mesh.src, :] - x[..., mesh.dst, :])
-    d = mesh.degree.astype(x.dtype)[:, None]
+    d = lift(mesh.degree.astype(x.dtype)[:, None], x.ndim)
     return safe_divide(segment_sum_rows(terms, mesh.src, mesh.num_vertices), d)
 
 
@@ -90,7 +90,7 @@ def nonlinear_visual_error(
     Note that c is an absolute length: D depends on the mesh's units.
     """
     x = _positions(reference, estimate)
-    v = reference.vertices
+    v = lift(reference.vertices, x.ndim)
     diff = v - x
     a_ref = nonlinear_diffusion_operator(reference, v, c, variant)
     a_est = nonlinear_diffusion_operator(reference, x, c, variant)
@@ -102,7 +102,7 @@ def nonlinear_visual_error(
 def rms_vertex_error(reference: Mesh, estimate) -> Float[Array, "*batch"]:
     """sqrt( (1/m) sum_i ||v_i - v̂_i||^2 )."""
     x = _positions(reference, estimate)
-    diff = reference.vertices - x
+    diff = lift(reference.vertices, x.ndim) - x
     return jnp.sqrt(jnp.mean(jnp.sum(diff * diff, axis=-1), axis=-1))
 
 
@@ -111,7 +111,7 @@ def mean_normal_angle_error(reference: Mesh, estimate) -> Float[Array, "*batch"]
     estimate's unit face normals: atan2(||n x n̂||, n . n̂).  Faces that are
     degenerate in either mesh (zero normal) are left out of the mean."""
     x = _positions(reference, estimate)
-    n_ref = face_normals(reference)
+    n_ref = lift(face_normals(reference), x.ndim)
     n_est = face_normals(reference.with_vertices(x))
     ang = jnp.arctan2(safe_norm(jnp.cross(n_ref, n_est)), jnp.sum(n_ref * n_est, axis=-1))
     valid = (jnp.sum(n_ref * n_ref, axis=-1) > 0) & (jnp.sum(n_est * n_est, axis=-1) > 0)

@@ -14,7 +14,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from ._private import safe_divide, segment_sum_rows, segment_sum_scalars
+from ._private import lift, safe_divide, segment_sum_rows, segment_sum_scalars
 from .geometry import corner_cotangents, vertex_areas
 from .mesh import Mesh
 
@@ -52,7 +52,7 @@ adjacency = neighbor_sum
 def laplacian(mesh: Mesh, x: Float[Array, "*batch V d"]) -> Float[Array, "*batch V d"]:
     """(L x)_i = d_i x_i - sum_{j ~ i} x_j,   L = D - A   (thesis ch.1 eq.6).
     Symmetric positive semi-definite; constants are in its kernel."""
-    d = degree(mesh, x.dtype)[:, None]
+    d = lift(degree(mesh, x.dtype)[:, None], x.ndim)
     return d * x - neighbor_sum(mesh, x)
 
 
@@ -67,8 +67,8 @@ def normalized_laplacian(mesh: Mesh, x: Float[Array, "*batch V d"]) -> Float[Arr
 
     Chung's convention for an isolated vertex: (𝓛 x)_i = 0.  Eigenvalues in [0, 2].
     """
-    s = _inv_sqrt_degree(mesh, x.dtype)[:, None]
-    connected = (mesh.degree > 0)[:, None]
+    s = lift(_inv_sqrt_degree(mesh, x.dtype)[:, None], x.ndim)
+    connected = lift((mesh.degree > 0)[:, None], x.ndim)
     return jnp.where(connected, x, 0) - s * neighbor_sum(mesh, s * x)
 
 
@@ -77,7 +77,7 @@ def umbrella(mesh: Mesh, x: Float[Array, "*batch V d"]) -> Float[Array, "*batch 
 
     Not symmetric; rows sum to 0; eigenvalues in [-2, 0].  0 at isolated vertices.
     """
-    d = degree(mesh, x.dtype)[:, None]
+    d = lift(degree(mesh, x.dtype)[:, None], x.ndim)
     mean = safe_divide(neighbor_sum(mesh, x), d)
     return jnp.where(d > 0, mean - x, 0)
 
@@ -87,7 +87,7 @@ def vertex_gradient(mesh: Mesh, x: Float[Array, "*batch V d"]) -> Float[Array, "
 
     One row per directed edge (src = i, dst = j), in ``mesh.src`` order.
     """
-    y = _inv_sqrt_degree(mesh, x.dtype)[:, None] * x
+    y = lift(_inv_sqrt_degree(mesh, x.dtype)[:, None], x.ndim) * x
     return y[..., mesh.dst, :] - y[..., mesh.src, :]
 
 
@@ -99,7 +99,7 @@ def vertex_laplace(mesh: Mesh, x: Float[Array, "*batch V d"]) -> Float[Array, "*
     where neighbouring degrees differ, so a flow built on it is not
     translation invariant.
     """
-    s = _inv_sqrt_degree(mesh, x.dtype)[:, None]
+    s = lift(_inv_sqrt_degree(mesh, x.dtype)[:, None], x.ndim)
     return s * segment_sum_rows(vertex_gradient(mesh, x), mesh.src, mesh.num_vertices)
 
 

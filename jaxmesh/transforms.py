@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
+from ._private import lift
 from .mesh import Mesh
 
 __all__ = ["normalize", "bounding_box_center", "unit_frame", "to_frame", "from_frame"]
@@ -22,7 +23,7 @@ def unit_frame(mesh: Mesh):
     v' = (v - c) / s has a unit diagonal.  A box of zero diagonal gets s = 1.
     Used by :func:`normalize`, the CLI and the tuner alike."""
     v = mesh.vertices
-    used = (mesh.degree > 0)[:, None]
+    used = lift((mesh.degree > 0)[:, None], v.ndim)
     hi = jnp.max(jnp.where(used, v, -jnp.inf), axis=-2)
     lo = jnp.min(jnp.where(used, v, jnp.inf), axis=-2)
     diag = jnp.sqrt(jnp.sum((hi - lo) ** 2, axis=-1))

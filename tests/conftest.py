@@ -1,5 +1,5 @@
 """Shared fixtures: small hand-checkable meshes, the shared real meshes (skipped
-when ../shared/meshes is absent), x64 and strict dtype promotion."""
+when ../shared/meshes is absent), x64, strict dtype promotion, and rank promotion that raises."""
 
 from __future__ import annotations
 
@@ -16,12 +16,18 @@ if os.environ.get("JAXMESH_TEST_XLA_OPTIMIZE") != "1":
     os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + " --xla_backend_optimization_level=0"
                                " --xla_llvm_disable_expensive_passes=true").strip()
 
+os.environ["JAX_NUMPY_RANK_PROMOTION"] = "raise"
+
 import jax  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)
 jax.config.update("jax_numpy_dtype_promotion", "strict")
+# Rank promotion raises, as in equinox's and optimistix's suites: the library writes
+# every broadcast between ranks explicitly (``_private.lift``).  The environment
+# variable carries the setting into the CLI subprocesses the tests start.
+jax.config.update("jax_numpy_rank_promotion", "raise")
 
 import jaxmesh  # noqa: E402
 

@@ -118,7 +118,7 @@ def test_noise_then_denoise_with_reference(capsys, tmp_path):
     # the file holds what the library computes (in unit-diagonal coordinates and back)
     m = jaxmesh.load(noisy)
     unit, centre, scale = jaxmesh.normalize(m, return_transform=True)
-    expect = jaxmesh.denoise.kernel_diffusion(unit, 0.5, 4).vertices * scale + centre
+    expect = jaxmesh.denoise.kernel_diffusion(unit, 0.5, 4).vertices * scale + centre[None]
     np.testing.assert_allclose(jaxmesh.load(out).vertices, expect, atol=1e-12)
 
 

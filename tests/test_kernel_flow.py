@@ -53,12 +53,12 @@ def test_paper_variant_matches_numpy_reference(noisy_spot):
 def test_translation_defect_of_the_paper_and_the_fix(noisy_spot):
     _, noisy = noisy_spot
     shift = jnp.array([0.5, 0.5, 0.5])
-    moved = noisy.with_vertices(noisy.vertices + shift)
+    moved = noisy.with_vertices(noisy.vertices + shift[None])
     rw = kernel_diffusion(noisy, 0.4, 3).vertices
-    rw_moved = kernel_diffusion(moved, 0.4, 3).vertices - shift
+    rw_moved = kernel_diffusion(moved, 0.4, 3).vertices - shift[None]
     np.testing.assert_allclose(rw_moved, rw, atol=1e-12)
     paper = kernel_diffusion(noisy, 0.4, 3, variant="paper").vertices
-    paper_moved = kernel_diffusion(moved, 0.4, 3, variant="paper").vertices - shift
+    paper_moved = kernel_diffusion(moved, 0.4, 3, variant="paper").vertices - shift[None]
     gap = float(jnp.max(jnp.linalg.norm(paper_moved - paper, axis=-1)))
     assert gap > 1e-4  # the origin leaks into eq.7 where neighbouring degrees differ
 

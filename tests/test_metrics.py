@@ -16,7 +16,7 @@ def test_visual_error_hand_values(tetra):
     assert float(M.visual_error(tetra, tetra)) == 0.0
     t = jnp.array([0.1, -0.2, 0.3])
     # a translation moves no Laplacian coordinate: E = |t|^2 / 2
-    np.testing.assert_allclose(M.visual_error(tetra, x + t), float(t @ t) / 2)
+    np.testing.assert_allclose(M.visual_error(tetra, x + t[None]), float(t @ t) / 2)
     # move vertex 0 by h along z: first term h^2, Laplacian term h^2 + 3 (h/3)^2, over 2m = 8
     h = 0.3
     np.testing.assert_allclose(M.visual_error(tetra, x.at[0, 2].add(h)), 7 * h * h / 24)
@@ -37,7 +37,7 @@ def test_nonlinear_error_reduces_to_linear_form_for_huge_c(spot):
 def test_nonlinear_error_translation_defect_and_fix(spot):
     noisy = jaxmesh.add_noise(spot, 0.3, jax.random.PRNGKey(1))
     shift = jnp.array([0.5, 0.5, 0.5])
-    moved_ref, moved_est = spot.with_vertices(spot.vertices + shift), noisy.vertices + shift
+    moved_ref, moved_est = spot.with_vertices(spot.vertices + shift[None]), noisy.vertices + shift[None]
     paper = (M.nonlinear_visual_error(spot, noisy), M.nonlinear_visual_error(moved_ref, moved_est))
     fixed = [M.nonlinear_visual_error(a, b, variant="translation_invariant")
              for a, b in ((spot, noisy), (moved_ref, moved_est))]
@@ -47,7 +47,7 @@ def test_nonlinear_error_translation_defect_and_fix(spot):
 
 def test_rms_and_normal_angle(grid):
     x = grid.vertices
-    np.testing.assert_allclose(M.rms_vertex_error(grid, x + jnp.array([0.0, 3.0, 4.0])), 5.0)
+    np.testing.assert_allclose(M.rms_vertex_error(grid, x + jnp.array([[0.0, 3.0, 4.0]])), 5.0)
     th = np.radians(10.0)
     rot = jnp.array([[1, 0, 0], [0, np.cos(th), -np.sin(th)], [0, np.sin(th), np.cos(th)]])
     np.testing.assert_allclose(M.mean_normal_angle_error(grid, x @ rot.T), 10.0, rtol=1e-12)

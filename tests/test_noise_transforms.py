@@ -42,7 +42,7 @@ def test_normalize(spot):
     n, c, s = jaxmesh.normalize(big, return_transform=True)
     np.testing.assert_allclose(jaxmesh.bounding_box_diagonal(n), 1.0)
     np.testing.assert_allclose(jnp.max(n.vertices, 0) + jnp.min(n.vertices, 0), 0, atol=1e-12)
-    np.testing.assert_allclose(n.vertices * s + c, big.vertices, rtol=1e-12)
+    np.testing.assert_allclose(n.vertices * s + c[None], big.vertices, rtol=1e-12)
     np.testing.assert_allclose(jaxmesh.normalize(spot).vertices, n.vertices, atol=1e-12)
     point = spot.with_vertices(jnp.zeros_like(spot.vertices) + 2.0)
     np.testing.assert_array_equal(jaxmesh.normalize(point).vertices, 0.0)  # no 0/0

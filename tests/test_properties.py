@@ -86,7 +86,7 @@ def test_operator_properties(mesh, motion):
 
     q, t = motion
     t = t * float(jaxmesh.bounding_box_diagonal(mesh))
-    moved = mesh.with_vertices(x @ jnp.asarray(q).T + t)
+    moved = mesh.with_vertices(x @ jnp.asarray(q).T + jnp.asarray(t)[None])
     a, b = _quantities(mesh), _quantities(moved)
     scale = float(jnp.max(jnp.abs(x))) + float(np.max(np.abs(t)))
     for name in SCALARS + VECTORS:

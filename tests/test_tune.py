@@ -42,7 +42,7 @@ def sphere(level=2, radius=1.0, offset=0.0):
 
 def in_frame(noisy, *meshes):
     c, s = frame(noisy)
-    return [m.with_vertices((m.vertices - c) / s) for m in (noisy, *meshes)]
+    return [m.with_vertices((m.vertices - c[..., None, :]) / s) for m in (noisy, *meshes)]
 
 
 def test_tuner_reaches_the_dense_grid_optimum(spot_pair):
@@ -107,11 +107,11 @@ def test_tuning_loss_gradients_match_finite_differences(blind):
 def test_tuned_result_is_scale_free(spot_pair, blind):
     clean, noisy = (sphere(2), jaxmesh.add_noise(sphere(2), 0.2, 1)) if blind else spot_pair
     shift = jnp.array([3.0, -1.0, 2.0])
-    big = lambda m: m.with_vertices(m.vertices * 1000.0 + shift)  # noqa: E731
+    big = lambda m: m.with_vertices(m.vertices * 1000.0 + shift[None])  # noqa: E731
     a = tune(noisy, None if blind else clean)
     b = tune(big(noisy), None if blind else big(clean))
     diag = float(jaxmesh.bounding_box_diagonal(noisy))
-    err = float(jnp.max(jnp.abs((b.mesh.vertices - shift) / 1000.0 - a.mesh.vertices))) / diag
+    err = float(jnp.max(jnp.abs((b.mesh.vertices - shift[None]) / 1000.0 - a.mesh.vertices))) / diag
     assert err < 1e-4
     assert float(b.params["lam"]) == pytest.approx(float(a.params["lam"]), rel=1e-4)
     assert float(b.error) == pytest.approx(1e6 * float(a.error), rel=1e-4)
@@ -162,7 +162,7 @@ def test_sure_is_an_unbiased_estimate_of_the_visual_error():
     """Mean of SURE over 256 noise draws equals the mean true error (3 standard errors)."""
     clean = sphere(2)
     sigma = 0.1 * float(jaxmesh.mean_edge_length(clean))
-    draws = clean.with_vertices(clean.vertices + sigma * jax.random.normal(
+    draws = clean.with_vertices(clean.vertices[None] + sigma * jax.random.normal(
         jax.random.PRNGKey(0), (256,) + clean.vertices.shape))
     denoiser = lambda y: kernel_diffusion(clean.with_vertices(y), 0.02, 3).vertices  # noqa: E731
     probes = rademacher_probes(jax.random.PRNGKey(1), clean, 4)
@@ -213,7 +213,7 @@ def test_noise_estimate_recovers_sigma_and_is_equivariant(estimator):
     noisy = jaxmesh.add_noise(clean, 0.2, 2)
     c, s_ = np.cos(0.7), np.sin(0.7)
     rot = jnp.array([[c, -s_, 0.0], [s_, c, 0.0], [0.0, 0.0, 1.0]])
-    moved = noisy.with_vertices(noisy.vertices @ rot.T * 250.0 + jnp.array([1.0, 2.0, 3.0]))
+    moved = noisy.with_vertices(noisy.vertices @ rot.T * 250.0 + jnp.array([[1.0, 2.0, 3.0]]))
     assert estimate_noise(moved, estimator) == pytest.approx(250.0 * estimate_noise(noisy, estimator), rel=1e-9)
     assert estimate_noise(clean, estimator) < 0.02 * ell    # a smooth clean sphere reads as (almost) noise-free
 

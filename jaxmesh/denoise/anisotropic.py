@@ -20,7 +20,7 @@ from typing import Literal
 
 import jax.numpy as jnp
 
-from .._private import safe_divide, segment_sum_rows
+from .._private import lift, safe_divide, segment_sum_rows
 from ..mesh import Mesh
 from ..metrics import cauchy_weight
 from ..operators import gradient_magnitude
@@ -38,14 +38,15 @@ def anisotropic_diffusion(
     """``iterations`` steps of Zhang–Ben Hamza diffusion (module docstring)."""
     if variant not in _GRADIENT:
         raise ValueError(f"variant must be one of {tuple(_GRADIENT)}, got {variant!r}")
-    d = mesh.degree.astype(mesh.dtype)
-    connected = (mesh.degree > 0).astype(mesh.dtype)  # isolated and padding vertices do not count
+    nd = mesh.vertices.ndim
+    d = lift(mesh.degree.astype(mesh.dtype), nd - 1)
+    connected = lift((mesh.degree > 0).astype(mesh.dtype), nd - 1)  # isolated and padding vertices do not count
     mean_grad = jnp.sum(gradient_magnitude(mesh, mesh.vertices, _GRADIENT[variant]) * connected,
                         axis=-1) / jnp.maximum(jnp.sum(connected), 1)
     scale = jnp.asarray(c, mesh.dtype) * mean_grad
     scale = jnp.where(scale > 0, scale, 1)[..., None]  # a mesh collapsed to a point
-    dt = jnp.asarray(dt, mesh.dtype)[..., None, None]
-    inv_sqrt = safe_divide(jnp.ones_like(d), jnp.sqrt(d))[:, None]
+    dt = lift(jnp.asarray(dt, mesh.dtype)[..., None, None], nd)
+    inv_sqrt = safe_divide(jnp.ones_like(d), jnp.sqrt(d))[..., None]
 
     def step(x):
         g = cauchy_weight(gradient_magnitude(mesh, x, _GRADIENT[variant]), scale)
@@ -56,7 +57,7 @@ def anisotropic_diffusion(
                                                mesh.src, mesh.num_vertices)
         else:
             flow = safe_divide(segment_sum_rows(phi * (x[..., mesh.dst, :] - x[..., mesh.src, :]),
-                                                mesh.src, mesh.num_vertices), d[:, None])
+                                                mesh.src, mesh.num_vertices), d[..., None])
         return x + dt * flow
 
     return mesh.with_vertices(iterate(step, mesh.vertices, iterations))

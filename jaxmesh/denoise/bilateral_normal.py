@@ -32,7 +32,7 @@ from typing import Callable
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from .._private import safe_normalize
+from .._private import lift, safe_normalize
 from ..geometry import face_areas, face_normals
 from ..mesh import Mesh
 from ._loop import check_iterations, iterate
@@ -63,8 +63,8 @@ def joint_bilateral_normals(
     """normalize( Σ_k weights[f, k] W_r(‖g_f − g_{ring[f,k]}‖) n_{ring[f,k]} ) (module docstring)."""
     diff = guidance[..., :, None, :] - guidance[..., graph.ring, :]      # (*b, F, K, 3)
     t2 = jnp.sum(diff * diff, axis=-1)
-    sr = jnp.asarray(sigma_r, normals.dtype)
-    w = weights * jnp.exp(-0.5 * t2 / jnp.asarray(sr, normals.dtype)[..., None, None] ** 2)
+    sr = lift(jnp.asarray(sigma_r, normals.dtype)[..., None, None], t2.ndim)
+    w = weights * jnp.exp(-0.5 * t2 / sr ** 2)
     return safe_normalize(jnp.sum(w[..., None] * normals[..., graph.ring, :], axis=-2))
 
 

@@ -26,7 +26,7 @@ import jax.numpy as jnp
 import lineax as lx
 from jaxtyping import Array, Float
 
-from .._private import safe_divide, segment_sum_rows, segment_sum_scalars
+from .._private import lift, safe_divide, segment_sum_rows, segment_sum_scalars
 from ..geometry import vertex_areas
 from ..mesh import Mesh
 from ..operators import cotangent_weights
@@ -65,7 +65,7 @@ def implicit_diffusion_step(
     # give it the mean mass so the system stays definite and the vertex stays put
     mean_mass = jnp.where(area_per_vertex > 0, area_per_vertex, 1)[..., None]
     mass = jnp.where(mass > 0, mass, mean_mass)
-    tau = (jnp.asarray(dt, x.dtype) * area_per_vertex)[..., None, None]
+    tau = lift((jnp.asarray(dt, x.dtype) * area_per_vertex)[..., None, None], x.ndim)
     m = mass[..., None]
 
     def apply(y):
@@ -88,7 +88,7 @@ def cotangent_flow(mesh: Mesh, dt=0.5, iterations: int = 5, implicit: bool = Fal
             c = 0.5 * cotangent_weights(mesh.with_vertices(x))
             return implicit_diffusion_step(mesh, x, c, dt)
     else:
-        dt_ = jnp.asarray(dt, mesh.dtype)[..., None, None]
+        dt_ = lift(jnp.asarray(dt, mesh.dtype)[..., None, None], mesh.vertices.ndim)
 
         def step(x):
             c = cotangent_weights(mesh.with_vertices(x))

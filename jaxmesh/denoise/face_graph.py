@@ -29,7 +29,7 @@ import numpy as np
 import scipy.sparse as sp
 from jaxtyping import Array, Bool, Float, Int
 
-from .._private import safe_divide, safe_norm
+from .._private import lift, safe_divide, safe_norm
 from ..mesh import Mesh, to_device
 
 __all__ = ["FaceGraph", "face_graph", "face_centroids", "centroid_spacing"]
@@ -136,4 +136,4 @@ def centroid_spacing(graph: FaceGraph, centroids: Float[Array, "*batch F 3"]) ->
     a = centroids[..., graph.edge_faces[:, 0], :]
     b = centroids[..., graph.edge_faces[:, 1], :]
     w = graph.edge_mask.astype(centroids.dtype)
-    return safe_divide(jnp.sum(safe_norm(a - b) * w, axis=-1), jnp.sum(w))
+    return safe_divide(jnp.sum(safe_norm(a - b) * lift(w, a.ndim - 1), axis=-1), jnp.sum(w))

@@ -28,7 +28,7 @@ def kernel_density(mesh: Mesh, points: Float[Array, "P 3"], scale: float | None 
     v = mesh.vertices
     m = v.shape[0]
     s = m ** (-1 / 7) if scale is None else scale
-    centred = v - jnp.mean(v, axis=0)
+    centred = v - jnp.mean(v, axis=0, keepdims=True)
     h = (s * s) * (centred.T @ centred) / (m - 1)
     det, adj = det_adjugate_3x3(h)
     if not bool(det > 0):

@@ -38,7 +38,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from .._private import safe_divide, segment_sum_rows, segment_sum_scalars
+from .._private import lift, safe_divide, segment_sum_rows, segment_sum_scalars
 from ..mesh import Mesh
 from ..operators import neighbor_sum
 from ._loop import iterate
@@ -53,12 +53,13 @@ def neighborhood_covariances(
     mesh: Mesh, x: Float[Array, "*batch V 3"], lam
 ) -> Float[Array, "*batch V 3 3"]:
     """H_i = sum_{j~i} (x_j - c_i)(x_j - c_i)^T + λ I, c_i the neighbour mean (eq.9, eq.12)."""
-    d = mesh.degree.astype(x.dtype)[:, None]
+    d = lift(mesh.degree.astype(x.dtype)[:, None], x.ndim)
     c = safe_divide(neighbor_sum(mesh, x), d)
     diff = x[..., mesh.dst, :] - c[..., mesh.src, :]
     outer = (diff[..., :, None] * diff[..., None, :]).reshape(*diff.shape[:-1], 9)
     h = segment_sum_rows(outer, mesh.src, mesh.num_vertices).reshape(*x.shape[:-1], 3, 3)
-    return h + jnp.asarray(lam, x.dtype)[..., None, None, None] * jnp.eye(3, dtype=x.dtype)
+    lam = lift(jnp.asarray(lam, x.dtype)[..., None, None, None], h.ndim)
+    return h + lam * lift(jnp.eye(3, dtype=x.dtype), h.ndim)
 
 
 def _symmetric_adjugate(h):
@@ -91,12 +92,12 @@ def _kernel_parts(mesh: Mesh, x: Float[Array, "*batch V 3"], lam):
     dx, dy, dz = delta[..., 0], delta[..., 1], delta[..., 2]
     cols = jnp.stack([dx * dx, dy * dy, dz * dz, dx * dy, dx * dz, dy * dz, dx, dy, dz], axis=-1)
     sums = segment_sum_rows(cols, mesh.src, mesh.num_vertices)
-    d = mesh.degree.astype(x.dtype)[:, None]
+    d = lift(mesh.degree.astype(x.dtype)[:, None], x.ndim)
     mean = safe_divide(sums[..., 6:], d)
     mx, my, mz = mean[..., 0], mean[..., 1], mean[..., 2]
     outer = jnp.stack([mx * mx, my * my, mz * mz, mx * my, mx * mz, my * mz], axis=-1)
-    lam = jnp.asarray(lam, x.dtype)[..., None, None]
-    h = sums[..., :6] - d * outer + lam * jnp.array([1, 1, 1, 0, 0, 0], x.dtype)
+    lam = lift(jnp.asarray(lam, x.dtype)[..., None, None], x.ndim)
+    h = sums[..., :6] - d * outer + lam * lift(jnp.array([1, 1, 1, 0, 0, 0], x.dtype), x.ndim)
     det, co = _symmetric_adjugate(h)
     det = jnp.maximum(det, jnp.finfo(x.dtype).tiny)
     norm = (2 * jnp.pi) ** -1.5 * jax.lax.rsqrt(det)
@@ -120,9 +121,9 @@ def kernel_step(
 ) -> Float[Array, "*batch V 3"]:
     """One Jacobi iteration of the kernel flow (see the module docstring)."""
     norm, p, diff = _kernel_parts(mesh, x, lam)
-    d = mesh.degree.astype(x.dtype)
+    d = lift(mesh.degree.astype(x.dtype), x.ndim - 1)
     if variant == "paper":
-        s = safe_divide(jnp.ones_like(d), jnp.sqrt(d))[:, None]
+        s = safe_divide(jnp.ones_like(d), jnp.sqrt(d))[..., None]
         y = s * x
         diff = y[..., mesh.dst, :] - y[..., mesh.src, :]
         kappa = norm[..., mesh.src] * p

@@ -30,7 +30,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from .._private import safe_divide, segment_sum_rows, segment_sum_scalars
+from .._private import lift, safe_divide, segment_sum_rows, segment_sum_scalars
 from ..mesh import Mesh
 from ..operators import taubin_pair, umbrella
 from ._loop import iterate
@@ -57,8 +57,8 @@ def smoothing_operator(mesh: Mesh, boundary: str = "free"):
     w = boundary_curve_weights(mesh)
 
     def op(x):
-        wx = jnp.where(w[:, None], x[..., mesh.dst, :], 0)
-        count = segment_sum_scalars(w.astype(x.dtype), mesh.src, mesh.num_vertices)[:, None]
+        wx = jnp.where(lift(w[:, None], x.ndim), x[..., mesh.dst, :], 0)
+        count = lift(segment_sum_scalars(w.astype(x.dtype), mesh.src, mesh.num_vertices)[:, None], x.ndim)
         return jnp.where(count > 0, safe_divide(segment_sum_rows(wx, mesh.src, mesh.num_vertices), count) - x, 0)
 
     return op
@@ -69,15 +69,15 @@ __all__ = ["laplacian_smoothing", "taubin_smoothing", "hc_smoothing"]
 def laplacian_smoothing(mesh: Mesh, lam=0.5, iterations: int = 10, boundary: str = "free") -> Mesh:
     """``iterations`` explicit steps of x <- x + λ K x (umbrella flow)."""
     k = smoothing_operator(mesh, boundary)
-    lam = jnp.asarray(lam, mesh.dtype)[..., None, None]
+    lam = lift(jnp.asarray(lam, mesh.dtype)[..., None, None], mesh.vertices.ndim)
     return mesh.with_vertices(iterate(lambda x: x + lam * k(x), mesh.vertices, iterations))
 
 
 def taubin_smoothing(mesh: Mesh, lam=0.5, mu=-0.53, iterations: int = 10, boundary: str = "free") -> Mesh:
     """``iterations`` Taubin pairs: x <- x + λ K x, then x <- x + μ K x (μ < -λ)."""
     k = smoothing_operator(mesh, boundary)
-    lam = jnp.asarray(lam, mesh.dtype)[..., None, None]
-    mu = jnp.asarray(mu, mesh.dtype)[..., None, None]
+    lam = lift(jnp.asarray(lam, mesh.dtype)[..., None, None], mesh.vertices.ndim)
+    mu = lift(jnp.asarray(mu, mesh.dtype)[..., None, None], mesh.vertices.ndim)
 
     return mesh.with_vertices(iterate(lambda x: taubin_pair(x, k, lam, mu), mesh.vertices, iterations))
 
@@ -85,8 +85,8 @@ def taubin_smoothing(mesh: Mesh, lam=0.5, mu=-0.53, iterations: int = 10, bounda
 def hc_smoothing(mesh: Mesh, alpha=0.1, beta=0.5, iterations: int = 10, boundary: str = "free") -> Mesh:
     """``iterations`` HC-Laplacian steps (Vollmer et al. 1999; module docstring)."""
     k = smoothing_operator(mesh, boundary)
-    alpha = jnp.asarray(alpha, mesh.dtype)[..., None, None]
-    beta = jnp.asarray(beta, mesh.dtype)[..., None, None]
+    alpha = lift(jnp.asarray(alpha, mesh.dtype)[..., None, None], mesh.vertices.ndim)
+    beta = lift(jnp.asarray(beta, mesh.dtype)[..., None, None], mesh.vertices.ndim)
     o = mesh.vertices
 
     def step(q):

@@ -33,7 +33,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from .._private import safe_divide, safe_normalize, segment_sum_rows, segment_sum_scalars
+from .._private import lift, safe_divide, safe_normalize, segment_sum_rows, segment_sum_scalars
 from ..mesh import Mesh
 from ..operators import umbrella
 from ._loop import iterate
@@ -53,7 +53,7 @@ def vertex_update(
     w = jnp.ones(normals.shape[:-1], x.dtype) if weights is None else weights
     total = segment_sum_scalars(jnp.repeat(w, 3, axis=-1), corners, mesh.num_vertices)
     m = safe_normalize(segment_sum_rows(jnp.repeat(normals, 3, axis=-2), corners, mesh.num_vertices))
-    t = jnp.asarray(tangential, x.dtype)[..., None, None]
+    t = lift(jnp.asarray(tangential, x.dtype)[..., None, None], x.ndim)
 
     def relax(y):
         k = umbrella(mesh, y)

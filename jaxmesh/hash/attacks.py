@@ -75,7 +75,7 @@ def scale_axis(mesh: Mesh, axis="x", factor: float = 1.5, seed: int = 0) -> Mesh
         raise ValueError(f"factor must be finite and non-zero, got {factor}")
     s = np.ones(3)
     s[_axis(axis)] = factor
-    return mesh.with_vertices(mesh.vertices * s.astype(mesh.vertices.dtype))
+    return mesh.with_vertices(mesh.vertices * s[None, :].astype(mesh.vertices.dtype))
 
 
 def rotation_matrix(axis, degrees: float) -> np.ndarray:
@@ -108,7 +108,7 @@ def translate(mesh: Mesh, offset=None, seed: int = 0) -> Mesh:
     t = np.asarray(offset, np.float64)
     if t.shape != (3,) or not np.all(np.isfinite(t)):
         raise ValueError(f"offset must be 3 finite numbers, got {offset!r}")
-    return mesh.with_vertices(mesh.vertices + t.astype(mesh.vertices.dtype))
+    return mesh.with_vertices(mesh.vertices + t[None, :].astype(mesh.vertices.dtype))
 
 
 def smooth(mesh: Mesh, iterations: int = 10, lam: float = 0.5, seed: int = 0) -> Mesh:

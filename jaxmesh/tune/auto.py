@@ -67,7 +67,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from .._private import RECORRUPTION_STREAM, library_key
+from .._private import RECORRUPTION_STREAM, library_key, lift
 from ..geometry import face_normals, mean_edge_length, vertex_normals
 from ..mesh import Mesh
 from ..operators import taubin_pair, umbrella
@@ -109,7 +109,7 @@ CANDIDATES: tuple[Candidate, ...] = tuple(
 
 def edge_tilt(mesh: Mesh, nu: Float[Array, "F 3"], ell, u: Float[Array, "*batch V 3"]) -> Float[Array, "*batch F 3"]:
     """(A u)_{f,e} = ν_f · (u_b − u_c) / ℓ̄ for the edges (b, c) opposite each corner (module docstring)."""
-    h = jnp.sum(u[..., mesh.faces, :] * nu[:, None, :], axis=-1)        # (*b, F, 3)
+    h = jnp.sum(u[..., mesh.faces, :] * lift(nu[:, None, :], u.ndim + 1), axis=-1)       # (*b, F, 3)
     return (h[..., [1, 2, 0]] - h[..., [2, 0, 1]]) / ell
 
 
@@ -166,7 +166,7 @@ def _taubin_path(mesh: Mesh, inputs, targets, nu, ell, lam, mu, count: int):
 
     def step(x, _):
         x = taubin_pair(x, lambda u: umbrella(mesh, u), lam_b, mu_b)
-        r = edge_tilt(mesh, nu, ell, x - targets)                            # (P, D, F, 3)
+        r = edge_tilt(mesh, nu, ell, x - targets[None])                           # (P, D, F, 3)
         return x, jnp.mean(jnp.sum(r * r, axis=(-2, -1)), axis=-1) / mesh.num_faces
 
     x0 = jnp.broadcast_to(inputs, (lam.shape[0],) + inputs.shape)
@@ -225,7 +225,7 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
     nu, n = face_normals(pilot), vertex_normals(pilot, "area")
     ell = mean_edge_length(noisy)
     k = library_key(key, RECORRUPTION_STREAM)
-    zs = s * jax.random.normal(k, (draws, noisy.num_vertices, 1), y.dtype) * n
+    zs = s * jax.random.normal(k, (draws, noisy.num_vertices, 1), y.dtype) * n[None]
 
     # tr(AᵀAΣ)/F with Σ_i = σ² n_i n_iᵀ: each edge difference sees its two vertices
     dots = jnp.sum(nu[:, None, :] * n[noisy.faces], axis=-1) ** 2                # (F, 3)
@@ -241,7 +241,7 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
             est += float(jnp.sum(r * r)) / noisy.num_faces / draws
         table.append((c.method, dict(c.params), est - constant))
     if taubin_path:
-        table += _taubin_rows(noisy, y + a * zs, y - zs / a, nu, ell, constant)
+        table += _taubin_rows(noisy, y[None] + a * zs, y[None] - zs / a, nu, ell, constant)
     table.sort(key=lambda row: row[2])
     method, params, risk = table[0]
     best = noisy.with_vertices(_denoise(noisy, y, Candidate(method, params), auxes[method]))

@@ -91,5 +91,5 @@ def search(loss, cfg, dtype, num_vertices: int):
     return {
         "u": u, "converged": done & (result == optx.RESULTS.successful), "steps": k,
         "grid_u": mesh_u, "grid_loss": grid_loss,
-        "history_u": u0 + scale * hist_y, "history_loss": hist_f,
+        "history_u": u0[None] + scale[None] * hist_y, "history_loss": hist_f,
     }
