@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
-from jaxtyping import Array, Float, Int
+from jaxtyping import Array, Float, Int, Shaped
 
 
 def segment_sum_rows(
-    data: Float[Array, "*batch N d"], segment_ids: Int[Array, " N"], num_segments: int
-) -> Float[Array, "*batch S d"]:
+    data: Shaped[Array, "*batch N d"], segment_ids: Int[Array, " N"], num_segments: int
+) -> Shaped[Array, "*batch S d"]:
     """out[..., s, :] = sum over n with ids[n] == s of data[..., n, :]."""
     moved = jnp.moveaxis(data, -2, 0)
     out = jax.ops.segment_sum(moved, segment_ids, num_segments=num_segments)
@@ -17,8 +17,8 @@ def segment_sum_rows(
 
 
 def segment_sum_scalars(
-    data: Float[Array, "*batch N"], segment_ids: Int[Array, " N"], num_segments: int
-) -> Float[Array, "*batch S"]:
+    data: Shaped[Array, "*batch N"], segment_ids: Int[Array, " N"], num_segments: int
+) -> Shaped[Array, "*batch S"]:
     """out[..., s] = sum over n with ids[n] == s of data[..., n]."""
     moved = jnp.moveaxis(data, -1, 0)
     out = jax.ops.segment_sum(moved, segment_ids, num_segments=num_segments)

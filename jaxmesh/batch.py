@@ -20,7 +20,8 @@ same code shards over every process's devices.
 
 from __future__ import annotations
 
-from typing import NamedTuple, Sequence
+from collections.abc import Sequence
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -31,7 +32,7 @@ from jaxtyping import Array, Bool
 
 from .mesh import Mesh, to_device
 
-__all__ = ["PaddedBatch", "pad_batch", "unpad", "shard"]
+__all__ = ["PaddedBatch", "pad_batch", "batch_spec", "unpad", "shard"]
 
 
 class PaddedBatch(NamedTuple):
@@ -93,6 +94,16 @@ def pad_batch(meshes: Sequence[Mesh], pad_to: tuple[int, int, int] | None = None
     sizes = tuple(m.num_vertices for m in meshes)
     mask = to_device(np.arange(nv)[None, :] < np.asarray(sizes)[:, None])
     return PaddedBatch(Mesh(**stacked), sizes, tuple(m.num_faces for m in meshes), mask)
+
+
+def batch_spec(pad_to: tuple[int, int, int], count: int, dtype) -> Mesh:
+    """The abstract mesh (leaves ``jax.ShapeDtypeStruct``) of a padded batch of
+    ``count`` meshes padded to ``pad_to`` = (vertices, faces, edges): what
+    :func:`pad_batch` builds, for ahead-of-time lowering (``jit(f).lower(spec)``).
+    Derived from padding one triangle, so it cannot drift from :func:`pad_batch`."""
+    tri = Mesh.from_arrays(np.eye(3), np.array([[0, 1, 2]]), dtype=dtype, warn=False)
+    one = pad_batch([tri], pad_to=pad_to).mesh
+    return jax.tree.map(lambda a: jax.ShapeDtypeStruct((int(count),) + a.shape[1:], a.dtype), one)
 
 
 def unpad(batch: PaddedBatch, result=None) -> list[Mesh]:

@@ -170,18 +170,21 @@ class Mesh(eqx.Module):
       sorted by (src, dst) and the undirected edge of each directed edge;
     * ``degree``: Int[Array, "V"] vertex degrees d_i.
 
+    A padded batch of different meshes (:func:`jaxmesh.batch.pad_batch`) stacks
+    the topology too: each topology array then has a leading ``*stack`` axis (B,).
+
     Build with :meth:`from_arrays` (or :func:`jaxmesh.load`); move the vertices
     with :meth:`with_vertices`, which keeps the topology and costs nothing.
     """
 
     vertices: Float[Array, "*batch V 3"]
-    faces: Int[Array, "F 3"]
-    edges: Int[Array, "E 2"]
-    face_edges: Int[Array, "F 3"]
-    src: Int[Array, " H"]
-    dst: Int[Array, " H"]
-    edge_of: Int[Array, " H"]
-    degree: Int[Array, " V"]
+    faces: Int[Array, "*stack F 3"]
+    edges: Int[Array, "*stack E 2"]
+    face_edges: Int[Array, "*stack F 3"]
+    src: Int[Array, "*stack H"]
+    dst: Int[Array, "*stack H"]
+    edge_of: Int[Array, "*stack H"]
+    degree: Int[Array, "*stack V"]
 
     @classmethod
     def from_arrays(cls, vertices, faces, *, dtype=None, warn: bool = True) -> "Mesh":

@@ -59,7 +59,7 @@ def visual_error(reference: Mesh, estimate) -> Float[Array, "*batch"]:
     return (jnp.sum(diff * diff, axis=(-2, -1)) + jnp.sum(gl * gl, axis=(-2, -1))) / (2 * m)
 
 
-def cauchy_weight(x: Array, c: float = CAUCHY_C) -> Array:
+def cauchy_weight(x: Array, c: float | Array = CAUCHY_C) -> Array:
     """g(x) = 1 / (1 + x^2 / c^2)   (thesis ch.3 eq.10)."""
     return 1 / (1 + (x / c) ** 2)
 

@@ -4,6 +4,7 @@ when ../shared/meshes is absent), x64, strict dtype promotion, and rank promotio
 from __future__ import annotations
 
 import gc
+import inspect
 import os
 from pathlib import Path
 
@@ -58,6 +59,25 @@ def _release_compiled_programs():
     if _memory_maps() > _MAP_LIMIT:
         jax.clear_caches()
         gc.collect()
+
+
+# The suite runs with jaxtyping + beartype checking jaxmesh's annotations (pyproject's
+# --jaxtyping-packages); a run without them (-p no:jaxtyping) checks only the library's
+# own validation.
+TYPECHECKED = hasattr(jaxmesh.geometry.vertex_normals, "__wrapped__")
+
+
+def assert_refused(fn, *args, param: str, message: str, error=ValueError, **kwargs):
+    """``fn(*args, **kwargs)`` passes ``param`` a value its annotation excludes (a
+    string outside a ``Literal[...]``, an object of the wrong type): when the
+    annotations are checked, the checker's TypeError names ``param``; and the
+    library's own validation (the unwrapped function, what users run) raises
+    ``error`` matching ``message``."""
+    if TYPECHECKED:
+        with pytest.raises(TypeError, match=f"parameter '{param}'"):
+            fn(*args, **kwargs)
+    with pytest.raises(error, match=message):
+        inspect.unwrap(fn)(*args, **kwargs)
 
 
 def shared_mesh_path(name: str) -> Path:

@@ -14,7 +14,7 @@ from jaxmesh.batch import pad_batch, shard, unpad
 from jaxmesh.denoise import METHODS
 from jaxmesh.metrics import visual_error
 
-from conftest import grid_arrays, octahedron_arrays
+from conftest import assert_refused, grid_arrays, octahedron_arrays
 
 
 @pytest.fixture(scope="module")
@@ -50,8 +50,7 @@ def test_pad_batch_refuses_bad_input(three_meshes):
         pad_batch([])
     with pytest.raises(ValueError, match="different dtypes"):
         pad_batch([three_meshes[0], three_meshes[1].astype(np.float32)])
-    with pytest.raises(TypeError, match="not a jaxmesh.Mesh"):
-        pad_batch([np.zeros((3, 3))])
+    assert_refused(pad_batch, [np.zeros((3, 3))], param="meshes", message="not a jaxmesh.Mesh", error=TypeError)
     batched = three_meshes[0].with_vertices(np.stack([three_meshes[0].vertices] * 2))
     with pytest.raises(ValueError, match="already batched"):
         pad_batch([batched])

@@ -7,6 +7,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from conftest import assert_refused
 import trimesh
 from jax.test_util import check_grads
 
@@ -221,5 +222,4 @@ def test_renamed_methods_keep_their_old_names_with_a_deprecation_warning(tetra):
     with pytest.warns(DeprecationWarning, match="use 'umbrella_flow'"):
         old = denoise(tetra, "laplacian", iterations=2).vertices
     np.testing.assert_array_equal(old, denoise(tetra, "umbrella_flow", iterations=2).vertices)
-    with pytest.raises(TypeError, match="registry name or a Method"):
-        as_method(3)
+    assert_refused(as_method, 3, param="method", message="registry name or a Method", error=TypeError)

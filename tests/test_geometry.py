@@ -4,6 +4,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from conftest import assert_refused
 from jax.test_util import check_grads
 
 import jaxmesh
@@ -111,8 +112,7 @@ def test_jit_equals_eager_and_vmap_equals_loop(bumpy_grid, k):
 
 
 def test_rejects_unknown_weighting(tetra):
-    with pytest.raises(ValueError, match="weighting must be"):
-        G.vertex_normals(tetra, "cotan")
+    assert_refused(G.vertex_normals, tetra, "cotan", param="weighting", message="weighting must be")
 
 
 def test_hat_gradients_reproduce_linear_functions_in_jax_and_numpy():

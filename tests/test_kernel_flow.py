@@ -5,6 +5,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from conftest import assert_refused
 from jax.test_util import check_grads
 
 import jaxmesh
@@ -102,8 +103,7 @@ def test_jit_vmap_and_batch_equal_single_calls(bumpy_grid):
 
 
 def test_bad_arguments(tetra):
-    with pytest.raises(ValueError, match="variant"):
-        kernel_diffusion(tetra, 0.5, 1, variant="nope")
+    assert_refused(kernel_diffusion, tetra, 0.5, 1, variant="nope", param="variant", message="variant")
     with pytest.raises(ValueError, match="iterations"):
         kernel_diffusion(tetra, 0.5, -1)
 

@@ -177,7 +177,8 @@ def test_operator_gradients_jit_and_batch(bumpy_grid, k):
     x = bumpy_grid.vertices
     w = jnp.asarray(np.random.default_rng(k).standard_normal(np.shape(op(bumpy_grid, x))))
     # gradient with respect to the positions (they enter the cotangent weights too)
-    loss = lambda y: jnp.sum(w * op(bumpy_grid.with_vertices(y), y))  # noqa: E731
+    # check_grads evaluates at numpy points: the operators are annotated (and checked) for JAX arrays
+    loss = lambda y: jnp.sum(w * op(bumpy_grid.with_vertices(jnp.asarray(y)), jnp.asarray(y)))  # noqa: E731
     check_grads(loss, (x,), order=1, modes=("rev",), eps=1e-6, atol=1e-5, rtol=1e-5)
     np.testing.assert_allclose(jax.jit(op)(bumpy_grid, x), op(bumpy_grid, x), rtol=1e-12, atol=1e-13)
     batch = jnp.stack([x, 2.0 * x, x + 1.0])

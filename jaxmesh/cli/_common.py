@@ -8,7 +8,7 @@ import json
 import sys
 import warnings
 from pathlib import Path
-from typing import Callable
+from collections.abc import Callable
 
 from .. import data
 from ..io import load

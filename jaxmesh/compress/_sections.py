@@ -9,7 +9,7 @@ from __future__ import annotations
 import lzma
 from dataclasses import dataclass
 from types import SimpleNamespace
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 

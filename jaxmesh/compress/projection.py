@@ -56,8 +56,8 @@ def basis_callback(mesh: Mesh, r: int, kind: str = "umbrella") -> Float[Array, "
     dtype = mesh.vertices.dtype
     shape = jax.ShapeDtypeStruct((m, int(r)), dtype)
 
-    def host(faces: Int[np.ndarray, "F 3"]) -> np.ndarray:
-        return _host_basis(faces, m, int(r), kind, np.dtype(dtype))
+    def host(faces: Int[np.ndarray, "F 3"] | Int[Array, "F 3"]) -> np.ndarray:
+        return _host_basis(np.asarray(faces), m, int(r), kind, np.dtype(dtype))
 
     out = jax.pure_callback(host, shape, mesh.faces, vmap_method="sequential")
     return jax.lax.stop_gradient(out)

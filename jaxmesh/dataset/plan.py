@@ -16,7 +16,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from pathlib import Path
-from typing import Iterable, Sequence
+from collections.abc import Iterable, Sequence
 
 __all__ = ["LADDER_START", "LADDER_RATIO", "MESH_SUFFIXES", "rung", "Batch", "plan_batches", "expand_inputs",
            "peek_sizes"]

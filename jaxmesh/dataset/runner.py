@@ -30,13 +30,14 @@ import queue
 import threading
 import time
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from collections.abc import Callable, Sequence
+from typing import Any
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..batch import pad_batch, unpad
+from ..batch import batch_spec, pad_batch, unpad
 from ..mesh import Mesh
 from .plan import LADDER_RATIO, LADDER_START, MESH_SUFFIXES, Batch, expand_inputs, peek_sizes, plan_batches, rung
 
@@ -194,17 +195,6 @@ def _run_batch(batch: Batch, meshes: list, method: str, params: dict, tally: _Ta
     return results
 
 
-def _spec(shape: tuple[int, int, int], count: int, dtype) -> Mesh:
-    """The abstract padded batch of ``count`` meshes of ``shape``: what
-    :func:`~jaxmesh.batch.pad_batch` builds (int32 topology, as build_topology)."""
-    v, f, e = shape
-    sds = jax.ShapeDtypeStruct
-    i32 = np.int32
-    return Mesh(vertices=sds((count, v, 3), dtype), faces=sds((count, f, 3), i32), edges=sds((count, e, 2), i32),
-                face_edges=sds((count, f, 3), i32), src=sds((count, 2 * e), i32), dst=sds((count, 2 * e), i32),
-                edge_of=sds((count, 2 * e), i32), degree=sds((count, v), i32))
-
-
 def _precompile(plan: list[Batch], method: str, params: dict, dtype, workers: int = 2) -> dict:
     """Compile every planned (shape, batch size) on ``workers`` threads, ahead of
     the stream (XLA compiles without the GIL, so this overlaps reading):
@@ -217,7 +207,7 @@ def _precompile(plan: list[Batch], method: str, params: dict, dtype, workers: in
     for b in plan:
         key = (b.shape, len(b.items) + b.fill)
         if key not in jobs:
-            jobs[key] = pool.submit(lambda k=key: _run_padded.lower(_spec(k[0], k[1], dtype), cont, method=method,
+            jobs[key] = pool.submit(lambda k=key: _run_padded.lower(batch_spec(k[0], k[1], dtype), cont, method=method,
                                                                    statics=statics).compile())
     pool.shutdown(wait=False)
     return jobs

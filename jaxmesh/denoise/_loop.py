@@ -8,7 +8,7 @@ import contextvars
 import signal
 import threading
 import time
-from typing import Callable, Iterator
+from collections.abc import Callable, Iterator
 
 import jax
 from jaxtyping import Array, Float

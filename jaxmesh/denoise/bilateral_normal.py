@@ -27,7 +27,7 @@ Differentiable in the positions and in ``sigma_s``, ``sigma_r`` and
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import jax.numpy as jnp
 from jaxtyping import Array, Float

@@ -13,7 +13,8 @@ import dataclasses
 import functools
 import math
 import warnings
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -54,7 +55,7 @@ class Param:
     help: str
     bounds: tuple[float, float] | None = None
     log: bool = False
-    choices: tuple[str, ...] = ()
+    choices: tuple[str | bool, ...] = ()
     build: Callable[[Mesh], Any] | None = None
     domain: tuple[float, float] = (0.0, math.inf)
     closed: str = "()"

@@ -17,7 +17,7 @@ smoothing step or the unit of its noise σ; the choices are written there).
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 

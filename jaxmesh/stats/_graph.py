@@ -33,7 +33,11 @@ class GraphView:
         return getattr(self.mesh, name)
 
 
-def graph_view(mesh) -> GraphView:
+MeshOrView = Mesh | GraphView
+"""What the statistics accept: a single mesh, or its :class:`GraphView`."""
+
+
+def graph_view(mesh: MeshOrView) -> GraphView:
     """``mesh``'s :class:`GraphView` (``mesh`` itself if it is one already)."""
     return mesh if isinstance(mesh, GraphView) else GraphView(mesh)
 

@@ -29,7 +29,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..mesh import Mesh
-from ._graph import edges_and_degree
+from ._graph import MeshOrView, edges_and_degree
 
 __all__ = ["triangle_counts", "clustering", "thesis_clustering", "clustering_by_degree"]
 
@@ -50,7 +50,7 @@ def _forward_triangles(u, v, out, n: int):
     return t + jax.ops.segment_sum(per_slot.reshape(-1), tops, n + 1)[:n]
 
 
-def triangle_counts(mesh: Mesh) -> np.ndarray:
+def triangle_counts(mesh: MeshOrView) -> np.ndarray:
     """t_v: number of graph triangles through each vertex (exact), shape (V,)."""
     _, deg = edges_and_degree(mesh)
     n = mesh.num_vertices
@@ -68,7 +68,7 @@ def triangle_counts(mesh: Mesh) -> np.ndarray:
     return np.asarray(_forward_triangles(u, v, out, n), np.int64)
 
 
-def clustering(mesh: Mesh) -> np.ndarray:
+def clustering(mesh: MeshOrView) -> np.ndarray:
     """C(v) = 2 t_v / (d_v (d_v - 1)), 0 where d_v < 2 (the networkx convention)."""
     _, d = edges_and_degree(mesh)
     t = triangle_counts(mesh)
@@ -76,13 +76,13 @@ def clustering(mesh: Mesh) -> np.ndarray:
     return np.where(den > 0, 2 * t / np.where(den > 0, den, 1), 0.0)
 
 
-def thesis_clustering(mesh: Mesh) -> np.ndarray:
+def thesis_clustering(mesh: MeshOrView) -> np.ndarray:
     """C(v) = 2 / (d_v - 1) (thesis ch.5 eq.6); NaN where d_v <= 1."""
     _, d = edges_and_degree(mesh)
     return np.where(d > 1, 2 / np.where(d > 1, d - 1, 1), np.nan)
 
 
-def clustering_by_degree(mesh: Mesh, values: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def clustering_by_degree(mesh: MeshOrView, values: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(k, C(k)): mean clustering over the vertices of each degree k present (eq.7)."""
     _, d = edges_and_degree(mesh)
     c = clustering(mesh) if values is None else np.asarray(values)

@@ -7,26 +7,26 @@ from __future__ import annotations
 import numpy as np
 
 from ..mesh import Mesh
-from ._graph import edges_and_degree
+from ._graph import MeshOrView, edges_and_degree
 
 __all__ = ["average_degree", "degree_distribution", "neighbor_connectivity",
            "assortativity_function", "degree_assortativity"]
 
 
-def average_degree(mesh: Mesh) -> float:
+def average_degree(mesh: MeshOrView) -> float:
     """d̄ = 2|E| / m (eq.1)."""
     e, _ = edges_and_degree(mesh)
     return 2 * len(e) / mesh.num_vertices
 
 
-def degree_distribution(mesh: Mesh) -> tuple[np.ndarray, np.ndarray]:
+def degree_distribution(mesh: MeshOrView) -> tuple[np.ndarray, np.ndarray]:
     """(k, p_k) for every degree k present: p_k = m_k / m (eq.2–3)."""
     _, d = edges_and_degree(mesh)
     ks, counts = np.unique(d, return_counts=True)
     return ks, counts / mesh.num_vertices
 
 
-def neighbor_connectivity(mesh: Mesh) -> np.ndarray:
+def neighbor_connectivity(mesh: MeshOrView) -> np.ndarray:
     """K_nn(v_i) = (1/d_i) sum_{j~i} d_j (eq.4); 0 for isolated vertices
     (networkx's average_neighbor_degree convention)."""
     e, d = edges_and_degree(mesh)
@@ -34,7 +34,7 @@ def neighbor_connectivity(mesh: Mesh) -> np.ndarray:
     return np.where(d > 0, s / np.maximum(d, 1), 0.0)
 
 
-def assortativity_function(mesh: Mesh, knn: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def assortativity_function(mesh: MeshOrView, knn: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(k, K_nn(k)): the mean of K_nn(v) over the vertices of degree k (eq.5)."""
     _, d = edges_and_degree(mesh)
     knn = neighbor_connectivity(mesh) if knn is None else knn
@@ -42,7 +42,7 @@ def assortativity_function(mesh: Mesh, knn: np.ndarray | None = None) -> tuple[n
     return ks, np.bincount(inv, knn) / np.bincount(inv)
 
 
-def degree_assortativity(mesh: Mesh) -> float:
+def degree_assortativity(mesh: MeshOrView) -> float:
     """Newman's r: the Pearson correlation of the degrees at the two ends of an
     edge, over both orientations of every edge (Newman 2002).  NaN when every
     edge joins vertices of one degree (zero variance)."""

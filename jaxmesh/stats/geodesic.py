@@ -26,12 +26,12 @@ from scipy.spatial import cKDTree
 from ..geometry import hat_gradients
 from ..mesh import Mesh
 from .. import sparse as jsparse
-from ._graph import single
+from ._graph import MeshOrView, single
 
 __all__ = ["sample_sources", "graph_distances", "heat_geodesics", "geodesic_distances"]
 
 
-def sample_sources(mesh: Mesh, count: int, seed: int = 0) -> np.ndarray:
+def sample_sources(mesh: MeshOrView, count: int, seed: int = 0) -> np.ndarray:
     """``count`` distinct vertex indices drawn uniformly with a seeded generator
     (all vertices, in order, if ``count`` >= V)."""
     n = mesh.num_vertices
@@ -40,7 +40,7 @@ def sample_sources(mesh: Mesh, count: int, seed: int = 0) -> np.ndarray:
     return np.sort(np.random.default_rng(seed).choice(n, size=count, replace=False))
 
 
-def _graph(mesh: Mesh, graph: str, k: int) -> sp.csr_matrix:
+def _graph(mesh: MeshOrView, graph: str, k: int) -> sp.csr_matrix:
     if graph == "edges":
         return jsparse.edge_length_matrix(mesh)
     v = np.asarray(mesh.vertices, np.float64)
@@ -57,7 +57,7 @@ def _graph(mesh: Mesh, graph: str, k: int) -> sp.csr_matrix:
     raise ValueError(f"graph must be 'edges' or 'knn', got {graph!r}")
 
 
-def graph_distances(mesh: Mesh, sources, graph: str = "edges", k: int = 8) -> np.ndarray:
+def graph_distances(mesh: MeshOrView, sources, graph: str = "edges", k: int = 8) -> np.ndarray:
     """Shortest-path lengths (S, V) from ``sources`` on the edge graph or the
     kNN graph (``k`` ≥ 1 neighbours, at most V − 1); inf where unreachable."""
     single(mesh)
@@ -78,7 +78,7 @@ def _solve(lu, b: np.ndarray, block: int = 25) -> np.ndarray:
                            for i in range(0, b.shape[1], block)], axis=1)
 
 
-def heat_geodesics(mesh: Mesh, sources, t: float | None = None, block: int = 25) -> np.ndarray:
+def heat_geodesics(mesh: MeshOrView, sources, t: float | None = None, block: int = 25) -> np.ndarray:
     """Heat-method distances (S, V) from ``sources`` (module docstring); ``t``
     defaults to ℓ̄².  Vertices unreachable from a source (another component)
     get inf.  Sources are processed ``block`` at a time (the per-face gradients
@@ -125,7 +125,7 @@ def _heat_distances(heat, poisson, f, area, grad, sources) -> np.ndarray:
     return phi - phi[sources, np.arange(len(sources))][None, :]
 
 
-def geodesic_distances(mesh: Mesh, sources, method: str = "heat", k: int = 8) -> np.ndarray:
+def geodesic_distances(mesh: MeshOrView, sources, method: str = "heat", k: int = 8) -> np.ndarray:
     """Distances (S, V) by ``method``: "heat", "edges" or "knn"."""
     if method == "heat":
         return heat_geodesics(mesh, sources)

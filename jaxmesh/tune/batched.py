@@ -86,7 +86,7 @@ def _axes(mesh, shared_topology: bool):
         return None
     if not shared_topology:
         return 0
-    return dataclasses.replace(jax.tree.map(lambda _: None, mesh), vertices=0)
+    return jax.tree_util.tree_map_with_path(lambda path, _: 0 if path[0].name == "vertices" else None, mesh)
 
 
 @functools.partial(jax.jit, static_argnames=("cfg", "noisy_shared", "clean_shared"))

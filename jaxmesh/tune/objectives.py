@@ -24,7 +24,7 @@ the probes fixed, SURE is a smooth deterministic function of the parameters.
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import jax
 import jax.numpy as jnp

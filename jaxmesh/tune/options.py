@@ -6,7 +6,8 @@ It is hashable, so it is part of the jit-static configuration of a run."""
 from __future__ import annotations
 
 import dataclasses
-from typing import Any, Mapping
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 from .objectives import OBJECTIVES
 
@@ -28,8 +29,8 @@ class TuneOptions:
     * ``probes``: Hutchinson probes of the blind (SURE) estimate.
     """
 
-    names: tuple[str, ...] | None = None
-    bounds: tuple[tuple[str, tuple[float, float]], ...] = ()
+    names: str | Sequence[str] | None = None
+    bounds: Mapping[str, tuple[float, float]] | tuple[tuple[str, tuple[float, float]], ...] = ()
     objective: str = "visual"
     grid: int | None = None
     max_steps: int = 20

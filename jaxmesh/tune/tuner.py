@@ -34,7 +34,8 @@ final run); ``history`` holds the accepted iterates.
 from __future__ import annotations
 
 import dataclasses
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import equinox as eqx
 import jax
