@@ -28,7 +28,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..mesh import Mesh
 from ._graph import MeshOrView, edges_and_degree
 
 __all__ = ["triangle_counts", "clustering", "thesis_clustering", "clustering_by_degree"]

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..mesh import Mesh
 from ._graph import MeshOrView, edges_and_degree
 
 __all__ = ["average_degree", "degree_distribution", "neighbor_connectivity",

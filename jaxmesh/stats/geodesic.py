@@ -24,7 +24,6 @@ from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 
 from ..geometry import hat_gradients
-from ..mesh import Mesh
 from .. import sparse as jsparse
 from ._graph import MeshOrView, single
 

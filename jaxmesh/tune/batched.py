@@ -3,7 +3,6 @@ or one setting shared by a training set (:func:`tune_shared`)."""
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 
 import jax
