@@ -31,7 +31,7 @@ __version__ = "0.1.0"
 
 #: subpackages imported on first attribute access (PEP 562)
 _LAZY = ("batch", "compress", "data", "dataset", "denoise", "hash", "metrics", "operators", "sparse",
-         "stats", "tune")
+         "stats", "tune", "vf")
 
 
 def __getattr__(name: str):

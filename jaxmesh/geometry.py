@@ -28,6 +28,8 @@ __all__ = [
     "cotangents_of_corners",
     "vertex_normals",
     "vertex_areas",
+    "vertex_voronoi_areas",
+    "voronoi_areas_of_corners",
     "bounding_box_diagonal",
 ]
 
@@ -133,6 +135,26 @@ def cotangents_of_corners(p, xp=jnp):
     return xp.where(ok, xp.sum(e1 * e2, axis=-1) / xp.where(ok, cross, 1), 0)
 
 
+def voronoi_areas_of_corners(p, xp=jnp):
+    """Mixed Voronoi area of each corner of triangles given by their corners p
+    (..., 3, 3) (Meyer, Desbrun, Schröder & Barr 2003, the mass of libigl's
+    ``massmatrix(..., VORONOI)``): for a triangle with no obtuse angle, corner i gets
+    (|e_j|² cot θ_j + |e_k|² cot θ_k) / 8 over the two edges e_j, e_k that meet at
+    it (e_j opposite corner j); in an obtuse triangle the obtuse corner gets A/2 and
+    the others A/4.  The three sum to the area A.  Cotangents (with their
+    degenerate-corner guard) from :func:`cotangents_of_corners`; ``xp`` as there."""
+    cot = cotangents_of_corners(p, xp)
+    e = xp.roll(p, -2, axis=-2) - xp.roll(p, -1, axis=-2)            # edge opposite each corner
+    l2 = xp.sum(e * e, axis=-1)
+    term = l2 * cot                                                  # per opposite edge
+    voronoi = (xp.roll(term, -1, axis=-1) + xp.roll(term, -2, axis=-1)) / 8
+    c = xp.cross(p[..., 1, :] - p[..., 0, :], p[..., 2, :] - p[..., 0, :])
+    area = 0.5 * (safe_norm(c) if xp is jnp else xp.sqrt(xp.sum(c * c, axis=-1)))
+    obtuse = cot < 0
+    split = xp.where(obtuse, 0.5, 0.25) * area[..., None]
+    return xp.where(xp.any(obtuse, axis=-1, keepdims=True), split, voronoi)
+
+
 def hat_gradients(p, xp=jnp):
     """P1 finite elements on triangles given by their corners p (..., 3, 3): the area
     A_f and the gradients of the three hat functions,
@@ -180,6 +202,15 @@ def vertex_areas(mesh: Mesh) -> Float[Array, "*batch V"]:
     """eta_i = sum of the areas of the triangles incident to v_i (thesis ch.4 eq.1)."""
     a = face_areas(mesh)
     per_corner = jnp.stack([a, a, a], axis=-1)
+    flat = per_corner.reshape(*per_corner.shape[:-2], -1)
+    return segment_sum_scalars(flat, mesh.faces.reshape(-1), mesh.num_vertices)
+
+
+def vertex_voronoi_areas(mesh: Mesh) -> Float[Array, "*batch V"]:
+    """Mixed Voronoi area of each vertex, the sum of :func:`voronoi_areas_of_corners`
+    over its corners (the diagonal of libigl's Voronoi mass matrix).  Sums to the
+    surface area, like ``vertex_areas(mesh) / 3`` (the barycentric mass)."""
+    per_corner = voronoi_areas_of_corners(face_corners(mesh))
     flat = per_corner.reshape(*per_corner.shape[:-2], -1)
     return segment_sum_scalars(flat, mesh.faces.reshape(-1), mesh.num_vertices)
 
