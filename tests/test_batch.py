@@ -89,6 +89,7 @@ SHARDING_SCRIPT = textwrap.dedent("""
 """)
 
 
+@pytest.mark.slow   # a fresh Python process with four host devices (~10 s)
 def test_batch_shards_over_four_cpu_devices():
     env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=4", JAX_PLATFORMS="cpu")
     res = subprocess.run([sys.executable, "-c", SHARDING_SCRIPT], env=env, capture_output=True,

@@ -373,6 +373,7 @@ def _worker(code: str) -> dict:
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
+@pytest.mark.slow   # two fresh Python processes (JAX import + compile each); the in-process CLI tests cover the commands
 def test_round_trip_through_the_cli_in_separate_processes(tmp_path, spot):
     src = tmp_path / "spot.ply"
     jaxmesh.save(spot, src)

@@ -3,6 +3,7 @@ differences, degenerate input, and the registry's argument checking."""
 
 import warnings
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -44,12 +45,18 @@ def _spot_cases(names=None):
     return [pytest.param(n, marks=[pytest.mark.slow] if n in HEAVY_ON_SPOT else []) for n in (names or NAMES)]
 
 
-def compiled(method, mesh, **static):
+def compiled(method, mesh, max_traces=None, **static):
     """``x (*b, V, 3), **params -> method(mesh with x, **static)`` under one ``jit``, the
     host-built inputs (face graph) passed in: one compile serves every call of the same
-    shapes.  ``static``: the integer and choice parameters (iterations, ...)."""
+    shapes.  ``static``: the integer and choice parameters (iterations, ...).
+    ``max_traces``: fail (``eqx.debug.assert_max_traces``) if the flow is traced more
+    often, i.e. if calls of the same shapes do not share the compiled program."""
     aux = method.prepare(mesh)
-    return jax.jit(lambda x, **p: method(mesh.with_vertices(x), **aux, **static, **p).vertices)
+
+    def run(x, **p):
+        return method(mesh.with_vertices(x), **aux, **static, **p).vertices
+
+    return jax.jit(run if max_traces is None else eqx.debug.assert_max_traces(run, max_traces=max_traces))
 
 
 @pytest.mark.parametrize("name", _spot_cases())
@@ -58,7 +65,7 @@ def test_denoises_spot_and_is_translation_and_scale_invariant(noisy_spot, name):
     but for the kernel flow's λ, a squared length, scaling) the input shifts (scales)
     the output."""
     clean, noisy = noisy_spot
-    f = compiled(METHODS[name], noisy)
+    f = compiled(METHODS[name], noisy, max_traces=1)    # shifted and scaled inputs reuse the program
     a = f(noisy.vertices)
     assert np.all(np.isfinite(np.asarray(a)))
     assert float(visual_error(clean, a)) < 0.8 * float(visual_error(clean, noisy))

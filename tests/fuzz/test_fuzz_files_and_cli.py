@@ -243,6 +243,7 @@ def test_stale_temporary_files_of_dead_writers_are_removed(tmp_path):
     assert not stale.exists() and live.exists() and other.exists()
 
 
+@pytest.mark.slow   # two fresh CLI processes and a bunny denoise (~15 s)
 def test_ctrl_c_stops_a_long_denoise_within_seconds(tmp_path):
     out = tmp_path / "out.ply"
     argv = [sys.executable, "-m", "jaxmesh.cli", "denoise", "--sample", "bunny", str(out), "--method", "kernel"]
