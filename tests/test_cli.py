@@ -173,6 +173,7 @@ def test_denoise_lam_auto_blind(capsys, tmp_path, small_pair):
     assert "tuned lam (blind, noise sigma" in text and "estimated)" in text
 
 
+@pytest.mark.slow   # the supervised tuner is tested in test_tune; the blind CLI path stays in the default run
 @pytest.mark.filterwarnings("ignore:1 isolated vertices:jaxmesh.mesh.MeshWarning")  # small_pair's far vertex
 def test_denoise_lam_auto_supervised(capsys, tmp_path, small_pair):
     from jaxmesh.tune import tune

@@ -195,6 +195,7 @@ def test_tangential_relaxation_rescues_isotropic_noise():
     assert err[1] < 0.7 * err[0], err
 
 
+@pytest.mark.slow   # the default run checks every method's gradient jointly (test_denoise_methods)
 def test_guided_gradient_where_the_patch_choice_is_stable():
     """The patch choice is an argmin (no gradient); on the box it does not flip under
     the finite-difference steps, so the rest of the chain must match them."""

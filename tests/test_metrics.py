@@ -54,16 +54,17 @@ def test_rms_and_normal_angle(grid):
     assert float(M.mean_normal_angle_error(grid, x)) == 0.0
 
 
-def test_metrics_accept_batches_and_refuse_other_connectivity(spot):
-    noisy = jaxmesh.add_noise(spot, 0.2, jax.random.PRNGKey(2)).vertices
-    batch = jnp.stack([noisy, spot.vertices])
+def test_metrics_accept_batches_and_refuse_other_connectivity(bumpy_grid):
+    mesh = bumpy_grid
+    noisy = jaxmesh.add_noise(mesh, 0.2, jax.random.PRNGKey(2)).vertices
+    batch = jnp.stack([noisy, mesh.vertices])
     for f in (M.visual_error, M.nonlinear_visual_error, M.rms_vertex_error, M.mean_normal_angle_error):
-        out = f(spot, batch)
-        np.testing.assert_allclose(out[0], f(spot, noisy), rtol=1e-12)
-        np.testing.assert_allclose(jax.jit(f)(spot, noisy), f(spot, noisy), rtol=1e-12)
+        out = f(mesh, batch)
+        np.testing.assert_allclose(out[0], f(mesh, noisy), rtol=1e-12)
+        np.testing.assert_allclose(jax.jit(f)(mesh, noisy), f(mesh, noisy), rtol=1e-12)
         assert float(out[1]) < 1e-12
     with pytest.raises(ValueError, match="same connectivity"):
-        M.visual_error(spot, noisy[:-1])
+        M.visual_error(mesh, noisy[:-1])
 
 
 @pytest.mark.parametrize("f", [M.visual_error, M.nonlinear_visual_error, M.rms_vertex_error,

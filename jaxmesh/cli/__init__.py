@@ -16,14 +16,14 @@ import argparse
 import sys
 import warnings
 
-from . import compress, convert, decompress, demo, denoise, hash, info, noise, stats
+from . import compress, convert, decompress, demo, denoise, hash, info, noise, stats, view
 from ._common import CLIError
 from ._run import run_command
 
 __all__ = ["main", "build_parser", "COMMANDS", "CLIError"]
 
 COMMANDS = {module.__name__.rsplit(".", 1)[-1]: module
-            for module in (info, convert, noise, denoise, demo, stats, hash, compress, decompress)}
+            for module in (info, convert, noise, denoise, demo, stats, hash, compress, decompress, view)}
 
 
 def build_parser() -> argparse.ArgumentParser:

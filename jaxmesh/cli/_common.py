@@ -14,7 +14,8 @@ from .. import data
 from ..io import load
 
 __all__ = ["CLIError", "io_arguments", "mesh_arguments", "load_input", "mesh_source", "check_output",
-           "positional_output", "print_record", "with_caveats", "errors"]
+           "positional_output", "print_record", "with_caveats", "errors", "view_argument", "check_view",
+           "write_view"]
 
 
 class CLIError(ValueError):
@@ -113,3 +114,26 @@ def errors(reference, mesh) -> dict[str, float]:
 
     return {"visual_error": float(visual_error(reference, mesh)),
             "normal_angle_deg": float(mean_normal_angle_error(reference, mesh))}
+
+
+def view_argument(p: argparse.ArgumentParser, what: str) -> None:
+    """--view HTML: a self-contained viewer page of ``what`` (:mod:`jaxmesh.view`)."""
+    p.add_argument("--view", metavar="HTML", help=f"also write a viewer page (one HTML file) of {what}")
+
+
+def check_view(args) -> None:
+    """Refuse an existing --view file before any work is done (unless --force)."""
+    if getattr(args, "view", None):
+        check_output(args.view, getattr(args, "force", False))
+
+
+def write_view(args, meshes, scalars=None, scalar_label: str = "distance") -> None:
+    """Write the --view page of ``meshes`` ((label, mesh) pairs), if one was asked for."""
+    if not getattr(args, "view", None):
+        return
+    from ..view import write_viewer
+
+    title = "jaxmesh " + args.command if getattr(args, "command", None) else "jaxmesh view"
+    write_viewer(args.view, meshes, scalars, overwrite=getattr(args, "force", False), title=title,
+                 scalar_label=scalar_label)
+    print(f"jaxmesh: wrote viewer page {args.view}", file=sys.stderr)

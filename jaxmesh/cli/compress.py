@@ -7,7 +7,9 @@ import json
 import sys
 
 from ..compress import compress, save_compressed
-from ._common import check_output, io_arguments, load_input, positional_output
+import numpy as np
+
+from ._common import check_output, check_view, io_arguments, load_input, positional_output, view_argument, write_view
 
 HELP = "compress a mesh to a .jxm file (spectral geometry, lossless connectivity; ch.3)"
 
@@ -25,6 +27,7 @@ def configure(p) -> None:
     p.add_argument("--preserve-order", action="store_true",
                    help="also store the vertex order (costs about log2(V) bits per vertex)")
     p.add_argument("--json", action="store_true", help="print the report as one JSON object")
+    view_argument(p, "the input and its reconstruction, coloured by the vertex error")
 
 
 def _report(args, out: str, label: str, stats: dict, error: float) -> None:
@@ -47,6 +50,7 @@ def run(args) -> int:
     out = positional_output(args)
     if out != "-":
         check_output(out, args.force)
+    check_view(args)
     label, mesh = load_input(args)
     c = compress(mesh, keep=args.keep, bits=args.bits, basis=args.basis, patch_size=args.patch_size,
                  preserve_order=args.preserve_order)
@@ -56,4 +60,9 @@ def run(args) -> int:
     else:
         save_compressed(c, out, overwrite=args.force)
     _report(args, out, label, {"vertices": mesh.num_vertices, **c.stats}, c.relative_error(mesh))
+    if args.view:     # each reconstructed vertex against the original vertex it came from (c.order)
+        error = np.linalg.norm(np.asarray(c.mesh.vertices, np.float64)
+                               - np.asarray(mesh.vertices, np.float64)[c.order], axis=-1)
+        write_view(args, [(label, mesh), (f"{out} (decoded)", c.mesh)],
+                   [np.zeros(mesh.num_vertices), error], scalar_label="vertex error")
     return 0

@@ -11,7 +11,7 @@ from ..denoise import as_method
 from ..io import load, save
 from ..tune import choose_denoiser, denoise_with_tuning
 from .. import data
-from ._common import CLIError, check_output, load_input, positional_output, with_caveats
+from ._common import CLIError, check_output, check_view, load_input, positional_output, view_argument, with_caveats, write_view
 from ._dataset import dataset_arguments, run_dataset
 from ._denoise_report import progress_bar, report_auto, report_run
 from ._flags import add_parameter_flags, given_parameters, list_methods
@@ -39,6 +39,7 @@ def configure(p) -> None:
     p.add_argument("--noise-sigma", type=float, metavar="S",
                    help="noise standard deviation in the file's units, for blind tuning (default: estimated)")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    view_argument(p, "the input and the result (and --reference, colouring both by the distance to it)")
     p.epilog = ("Method parameters are flags named after them (--lam, --iterations, --mu, ...). "
                 "A continuous parameter given as 'auto' (e.g. --lam auto) is tuned: against "
                 "--reference if given (supervised), else blind (Stein's unbiased risk estimate "
@@ -50,10 +51,21 @@ def _load_pair(args):
     out = positional_output(args)
     label, mesh = load_input(args)
     check_output(out, args.force)
+    check_view(args)
     reference = load(args.reference) if args.reference else None
     if reference is not None and not mesh.same_connectivity(reference):
         raise CLIError(f"--reference {args.reference} does not have the connectivity of {label}")
     return label, mesh, reference, out
+
+
+def _view(args, label, mesh, out, result, reference) -> None:
+    """--view: the input, the result and the reference, coloured by the distance to it."""
+    from ..view import vertex_distances
+
+    pairs = [(label, mesh), (out, result)] + ([(args.reference, reference)] if reference is not None else [])
+    scalars = None if reference is None else [vertex_distances(reference, mesh), vertex_distances(reference, result),
+                                              None]
+    write_view(args, pairs, scalars, scalar_label=f"distance to {args.reference}")
 
 
 def run(args) -> int:
@@ -63,6 +75,8 @@ def run(args) -> int:
     if args.noise_sigma is not None and not args.noise_sigma > 0:
         raise CLIError(f"--noise-sigma must be > 0, got {args.noise_sigma}")
     if args.out_dir is not None:
+        if args.view:
+            raise CLIError("--view shows one input and its result; it does not combine with --out-dir")
         return run_dataset(args, given)
     if len(args.paths) > 2:
         raise CLIError(f"{len(args.paths)} paths given: name IN OUT (or --out-dir DIR for many inputs)")
@@ -75,6 +89,7 @@ def run(args) -> int:
         start = time.perf_counter()
         choice, caveats = with_caveats(choose_denoiser, mesh, sigma=args.noise_sigma)
         save(choice.mesh, out, overwrite=args.force)
+        _view(args, label, mesh, out, choice.mesh, reference)
         return report_auto(args, label, out, mesh, reference, choice, caveats, time.perf_counter() - start)
     if args.raw_units and (args.tune or "auto" in given.values()):
         raise CLIError("tuning runs in the unit-diagonal frame; drop --raw-units")
@@ -86,4 +101,5 @@ def run(args) -> int:
         result, caveats = with_caveats(denoise_with_tuning, mesh, args.method, given, tune_all=args.tune,
                                        reference=reference, sigma=args.noise_sigma, unit_frame=not args.raw_units)
     save(result.mesh, out, overwrite=args.force)
+    _view(args, label, mesh, out, result.mesh, reference)
     return report_run(args, label, out, mesh, reference, result, caveats, time.perf_counter() - start)

@@ -5,9 +5,11 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
+
 from ..hash import THRESHOLDS, mesh_hash, robust_hash, similarity, verdict
 from ..io import load
-from ._common import CLIError, mesh_arguments, mesh_source
+from ._common import CLIError, check_view, mesh_arguments, mesh_source, view_argument, write_view
 
 HELP = "print a mesh's hash, or compare two meshes (thesis ch.4)"
 
@@ -20,6 +22,8 @@ def configure(p) -> None:
                         "thesis: the thesis's METIS / MST / Laplace–Beltrami hash")
     p.add_argument("--parts", type=int, default=8, help="thesis hash: METIS parts (default 8)")
     p.add_argument("--eigenvalues", type=int, default=16, help="thesis hash: eigenvalues per part, r (default 16)")
+    view_argument(p, "A and B of --compare, B coloured by its distance to A")
+    p.add_argument("--force", action="store_true", help="replace the --view file if it exists")
 
 
 def _hasher(args):
@@ -32,11 +36,15 @@ def _hasher(args):
 
 def run(args) -> int:
     hasher = _hasher(args)
+    if args.view and not args.compare:
+        raise CLIError("--view shows the two meshes of --compare A B")
     if args.compare:
         if args.mesh or args.sample:
             raise CLIError("--compare takes exactly two meshes A B; do not name others")
         a, b = args.compare
-        rho = similarity(hasher(load(a)), hasher(load(b)))
+        check_view(args)
+        mesh_a, mesh_b = load(a), load(b)
+        rho = similarity(hasher(mesh_a), hasher(mesh_b))
         same, thr = verdict(rho, args.method), THRESHOLDS[args.method]
         if args.json:
             print(json.dumps({"a": a, "b": b, "method": args.method, "rho": rho, "threshold": thr,
@@ -44,6 +52,11 @@ def run(args) -> int:
         else:
             word = "same model" if same else "different models"
             print(f"rho {rho:.6f}  {word}  ({args.method} hash, threshold rho >= {thr})")
+        if args.view:
+            from ..view import vertex_distances
+
+            write_view(args, [(a, mesh_a), (b, mesh_b)], [np.zeros(mesh_a.num_vertices), vertex_distances(mesh_a, mesh_b)],
+                       scalar_label=f"distance to {a}")
         return 0
     for label, loader in mesh_source(args):
         h = hasher(loader())
