@@ -1,7 +1,7 @@
 """jaxmesh: differentiable triangle-mesh processing in JAX.
 
 The public names are re-exported here; each lives in a module of its own
-(see the README for the layout).  The core (the mesh, its files and geometry)
+(see docs/development.md for the layout).  The core (the mesh, its files and geometry)
 is imported with the package; the feature subpackages (``denoise``, ``tune``,
 ``compress``, ``hash``, ``stats``, ...) on first use, so ``import jaxmesh`` and the
 command line start without loading what they do not need.

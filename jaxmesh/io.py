@@ -103,12 +103,21 @@ def load(
 ) -> Mesh:
     """Read a triangle mesh from OBJ, PLY, OFF or STL.
 
-    ``merge_duplicates``: merge exactly coincident vertices (default: only for STL).
-    ``triangulate``: fan-triangulate polygons with a :class:`MeshWarning`
-    (default), or raise :class:`MeshFileError` if the file has any.
-    ``file_type`` overrides the suffix; ``dtype`` is passed to
-    :meth:`Mesh.from_arrays`.
-    """
+    Arguments:
+        path: the file; its suffix names the format unless ``file_type`` does.
+        merge_duplicates: merge exactly coincident vertices (default: only for STL,
+            which stores no shared vertices).
+        triangulate: fan-triangulate polygons with a :class:`MeshWarning` (default),
+            or raise :class:`MeshFileError` if the file has any.
+        file_type: ``"obj"``, ``"ply"``, ``"off"`` or ``"stl"``, overriding the suffix.
+        dtype: the vertices' float dtype, passed to :meth:`Mesh.from_arrays`.
+
+    Returns:
+        The :class:`Mesh`, vertices in the file's order.
+
+    Raises:
+        MeshFileError: an unreadable, truncated or malformed file, naming the file
+            (and the line)."""
     p = Path(path)
     fmt = _format_of(p, file_type)
     if p.is_dir():
@@ -248,10 +257,17 @@ def write_bytes_atomic(path: str | os.PathLike, data: bytes, *, overwrite: bool 
 def save(mesh: Mesh, path: str | os.PathLike, *, overwrite: bool = False, file_type: str | None = None) -> Path:
     """Write ``mesh`` (single, unbatched) to OBJ, PLY (binary), OFF or STL.
 
-    The file is written to a temporary name in the same directory and moved
-    into place atomically; an existing file is an error unless ``overwrite``.
-    Returns the path written.
-    """
+    The file is written to a temporary name in the same directory and moved into
+    place atomically.
+
+    Arguments:
+        mesh: the mesh to write.
+        path: the file; its suffix names the format unless ``file_type`` does.
+        overwrite: replace an existing file (default: an existing file is an error).
+        file_type: ``"obj"``, ``"ply"``, ``"off"`` or ``"stl"``, overriding the suffix.
+
+    Returns:
+        The path written."""
     p = Path(path)
     fmt = _format_of(p, file_type)
     if mesh.batch_shape:

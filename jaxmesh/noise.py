@@ -19,15 +19,23 @@ def _key(key):
 
 def add_noise(mesh: Mesh, sigma: float, key, *, along_normals: bool = False,
               relative: bool = True) -> Mesh:
-    """Add Gaussian noise of standard deviation σ = sigma · l_bar per coordinate
-    (l_bar the mean edge length of ``mesh``; with ``relative=False`` σ = sigma).
+    """Add Gaussian noise of standard deviation σ = sigma · ℓ̄ per coordinate
+    (ℓ̄ the mean edge length of ``mesh``).
 
-    ``along_normals=True`` displaces each vertex along its (area-weighted) unit
-    normal by a scalar N(0, σ²) instead of isotropically in 3-D.
-    ``key`` is a ``jax.random`` key or an int seed.  A batched mesh gets
-    independent noise per batch element, each scaled by its own l_bar.
-    Jittable and differentiable with respect to the vertices and ``sigma``.
-    """
+    Jittable and differentiable with respect to the vertices and ``sigma``.  A batched
+    mesh gets independent noise per batch element, each scaled by its own ℓ̄.
+
+    Arguments:
+        mesh: the mesh (single or batched).
+        sigma: the noise level, in mean edge lengths (in mesh units when
+            ``relative=False``).
+        key: a ``jax.random`` key or an int seed.
+        along_normals: displace each vertex along its (area-weighted) unit normal by
+            a scalar N(0, σ²) instead of isotropically in 3-D.
+        relative: sigma in mean edge lengths (default) or in mesh units.
+
+    Returns:
+        The mesh with noisy vertices (same topology)."""
     v = mesh.vertices
     scale = sigma * mean_edge_length(mesh) if relative else jnp.asarray(sigma, v.dtype)
     scale = jnp.asarray(scale, v.dtype)[..., None, None]

@@ -42,13 +42,17 @@ def from_frame(mesh: Mesh, centre, scale) -> Mesh:
 
 def normalize(mesh: Mesh, *, return_transform: bool = False):
     """Centre the bounding box at the origin and scale its diagonal to 1:
-    v' = (v - c) / s with c, s from :func:`unit_frame` (the box of the vertices
-    that have neighbours; isolated vertices follow the same map).
+    v' = (v - c) / s with c, s from :func:`unit_frame` (the box of the vertices that
+    have neighbours; isolated vertices follow the same map).  A mesh whose vertices
+    all coincide (s = 0) is only centred (s is reported as 1).
 
-    With ``return_transform=True`` returns ``(mesh, c, s)`` so that
-    ``v = v' * s + c`` undoes it.  A mesh whose vertices all coincide (s = 0)
-    is only centred (s is reported as 1).
-    """
+    Arguments:
+        mesh: the mesh (single or batched).
+        return_transform: also return c and s.
+
+    Returns:
+        The normalised mesh, or ``(mesh, c, s)`` with ``return_transform=True``, so
+        that ``v = v' * s + c`` undoes it."""
     c, s = unit_frame(mesh)
     out = to_frame(mesh, c, s)
     return (out, c, s) if return_transform else out

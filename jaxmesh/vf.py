@@ -60,8 +60,15 @@ def _x64():
 
 
 def to_mesh(V, F) -> Mesh:
-    """The :class:`~jaxmesh.Mesh` of `(V, F)`, validated (:meth:`Mesh.from_arrays`,
-    without its warnings).  Float64 when `jax_enable_x64` is on, else float32."""
+    """The :class:`~jaxmesh.Mesh` of ``(V, F)``, validated (:meth:`Mesh.from_arrays`,
+    without its warnings).
+
+    Arguments:
+        V: (n, 3) vertex positions.
+        F: (m, 3) vertex indices of the triangles.
+
+    Returns:
+        The mesh, float64 when ``jax_enable_x64`` is on, else float32."""
     return Mesh.from_arrays(np.asarray(V), np.asarray(F), warn=False)
 
 
@@ -90,18 +97,34 @@ def _faces(F, num_vertices: int | None = None) -> tuple[np.ndarray, int]:
 
 
 def cotmatrix(V, F) -> sp.csr_matrix:
-    """L (n, n): L_ij = ½ (cot α_ij + cot β_ij) over the corners opposite edge ij,
-    L_ii = -Σ_{j≠i} L_ij (libigl's `cotmatrix`: negative semi-definite, rows sum
-    to 0).  The matrix of :func:`jaxmesh.operators.cotangent_laplacian`."""
+    """The cotangent matrix L (libigl's ``cotmatrix``): L_ij = ½ (cot α_ij + cot β_ij)
+    over the corners opposite edge ij, L_ii = -Σ_{j≠i} L_ij.  Negative semi-definite,
+    rows sum to 0; the matrix of :func:`jaxmesh.operators.cotangent_laplacian`.
+
+    Arguments:
+        V: (n, 3) vertex positions.
+        F: (m, 3) triangles.
+
+    Returns:
+        (n, n) float64 CSR matrix."""
     with _mesh64(V, F) as mesh:
         return sparse.cotangent_laplacian_matrix(mesh)
 
 
 def massmatrix(V, F, kind: Literal["voronoi", "barycentric"] = "voronoi") -> sp.csr_matrix:
-    """M (n, n), diagonal: `"voronoi"` (libigl's default, MASSMATRIX_TYPE_VORONOI)
-    the mixed Voronoi area of each vertex (Meyer et al. 2003,
-    :func:`jaxmesh.geometry.voronoi_areas_of_corners`); `"barycentric"` a third of
-    the area of the faces around it.  Both sum to the surface area."""
+    """The diagonal mass matrix M (libigl's ``massmatrix``).  Both kinds sum to the
+    surface area.
+
+    Arguments:
+        V: (n, 3) vertex positions.
+        F: (m, 3) triangles.
+        kind: ``"voronoi"`` (libigl's default, MASSMATRIX_TYPE_VORONOI): the mixed
+            Voronoi area of each vertex (Meyer et al. 2003,
+            :func:`jaxmesh.geometry.voronoi_areas_of_corners`); ``"barycentric"``: a
+            third of the area of the faces around it.
+
+    Returns:
+        (n, n) float64 diagonal CSR matrix."""
     if kind not in MASS_KINDS:
         raise ValueError(f"kind must be one of {MASS_KINDS}, got {kind!r}")
     with _mesh64(V, F) as mesh:
@@ -110,8 +133,15 @@ def massmatrix(V, F, kind: Literal["voronoi", "barycentric"] = "voronoi") -> sp.
 
 
 def adjacency_matrix(F, num_vertices: int | None = None) -> sp.csr_matrix:
-    """A (n, n), int: A_ij = 1 where ij is an edge of a face (libigl's
-    `adjacency_matrix`; n = max index + 1 unless `num_vertices` is given)."""
+    """The vertex adjacency matrix (libigl's ``adjacency_matrix``): A_ij = 1 where ij
+    is an edge of a face.
+
+    Arguments:
+        F: (m, 3) triangles.
+        num_vertices: n (default: the largest index + 1).
+
+    Returns:
+        (n, n) int CSR matrix, symmetric, zero diagonal."""
     f, n = _faces(F, num_vertices)
     edges = build_topology(f, n)["edges"] if len(f) else np.zeros((0, 2), np.int64)
     i = np.concatenate([edges[:, 0], edges[:, 1]])
@@ -120,16 +150,31 @@ def adjacency_matrix(F, num_vertices: int | None = None) -> sp.csr_matrix:
 
 
 def per_face_normals(V, F) -> np.ndarray:
-    """(m, 3) unit normals n_f = (v_b − v_a) × (v_c − v_a) / ‖·‖ (counter-clockwise
-    faces face outward); the zero vector for a degenerate face."""
+    """Unit face normals n_f = (v_b − v_a) × (v_c − v_a) / ‖·‖ (libigl's
+    ``per_face_normals``): counter-clockwise faces face outward.
+
+    Arguments:
+        V: (n, 3) vertex positions.
+        F: (m, 3) triangles.
+
+    Returns:
+        (m, 3) float64; the zero vector for a degenerate face."""
     with _mesh64(V, F) as mesh:
         return np.asarray(geometry.face_normals(mesh), dtype=np.float64)
 
 
 def per_vertex_normals(V, F, weighting: Literal["area", "angle", "uniform"] = "area") -> np.ndarray:
-    """(n, 3) unit vertex normals: the face normals around each vertex summed with
-    weights `"area"` (libigl's default), `"angle"` (the corner angle) or
-    `"uniform"`, then normalised; the zero vector for an isolated vertex."""
+    """Unit vertex normals (libigl's ``per_vertex_normals``): the face normals around
+    each vertex, weighted, summed and normalised.
+
+    Arguments:
+        V: (n, 3) vertex positions.
+        F: (m, 3) triangles.
+        weighting: ``"area"`` (libigl's default), ``"angle"`` (the corner angle) or
+            ``"uniform"``.
+
+    Returns:
+        (n, 3) float64; the zero vector for an isolated vertex."""
     if weighting not in NORMAL_WEIGHTINGS:
         raise ValueError(f"weighting must be one of {NORMAL_WEIGHTINGS}, got {weighting!r}")
     with _mesh64(V, F) as mesh:
@@ -137,19 +182,31 @@ def per_vertex_normals(V, F, weighting: Literal["area", "angle", "uniform"] = "a
 
 
 def doublearea(V, F) -> np.ndarray:
-    """(m,) twice the area of each face, ‖(v_b − v_a) × (v_c − v_a)‖ (libigl's
-    `doublearea`)."""
+    """Twice the area of each face, ‖(v_b − v_a) × (v_c − v_a)‖ (libigl's
+    ``doublearea``).
+
+    Arguments:
+        V: (n, 3) vertex positions.
+        F: (m, 3) triangles.
+
+    Returns:
+        (m,) float64."""
     with _mesh64(V, F) as mesh:
         return 2 * np.asarray(geometry.face_areas(mesh), dtype=np.float64)
 
 
 def boundary_loops(F) -> list[np.ndarray]:
-    """Every boundary loop, each the vertex indices in order, longest first.
+    """Every boundary loop (libigl's ``boundary_loop_all``).
 
     A boundary half-edge is a face's directed edge a→b whose edge no other face uses;
-    a loop follows them, so it runs in the faces' orientation (libigl's
-    `boundary_loop_all`).  A vertex where several loops touch is left by the first
-    unused half-edge out of it."""
+    a loop follows them, so it runs in the faces' orientation.  A vertex where several
+    loops touch is left by the first unused half-edge out of it.
+
+    Arguments:
+        F: (m, 3) triangles.
+
+    Returns:
+        A list of int64 arrays, each a loop's vertex indices in order, longest first."""
     f, _ = _faces(F)
     if not len(f):
         return []
@@ -176,7 +233,13 @@ def boundary_loops(F) -> list[np.ndarray]:
 
 
 def boundary_loop(F) -> np.ndarray:
-    """The longest boundary loop (libigl's `boundary_loop`), or an empty array for
-    a closed mesh.  See :func:`boundary_loops`."""
+    """The longest boundary loop (libigl's ``boundary_loop``); see
+    :func:`boundary_loops`.
+
+    Arguments:
+        F: (m, 3) triangles.
+
+    Returns:
+        The loop's vertex indices in order (int64), or an empty array for a closed mesh."""
     loops = boundary_loops(F)
     return loops[0] if loops else np.zeros(0, np.int64)

@@ -47,15 +47,28 @@ def _b64(a: np.ndarray) -> str:
 
 
 def ramp(t: np.ndarray) -> np.ndarray:
-    """RGB in [0, 1] of values t in [0, 1] (clipped) on the viewer's colour ramp."""
+    """The viewer's colour ramp (dark blue to yellow, after the viridis family).
+
+    Arguments:
+        t: values in [0, 1] (clipped).
+
+    Returns:
+        RGB in [0, 1], shape ``t.shape + (3,)``."""
     t = np.clip(np.asarray(t, np.float64), 0, 1)
     return np.stack([np.interp(t, _RAMP[:, 0], _RAMP[:, k]) for k in (1, 2, 3)], axis=-1)
 
 
 def vertex_distances(reference: Mesh, mesh: Mesh) -> np.ndarray:
-    """Distance of each vertex of ``mesh`` to ``reference``: to the corresponding vertex
-    when both have the same number of vertices (a denoised or attacked copy), else to
-    the closest point of the reference's surface."""
+    """Distance of each vertex of ``mesh`` to ``reference``.
+
+    Arguments:
+        reference: the reference mesh.
+        mesh: the mesh whose vertices are measured.
+
+    Returns:
+        (V,) float64: to the corresponding vertex when both meshes have the same
+        number of vertices (a denoised or attacked copy), else to the closest point
+        of the reference's surface."""
     v = np.asarray(mesh.vertices, np.float64)
     r = np.asarray(reference.vertices, np.float64)
     if v.shape == r.shape:
@@ -143,8 +156,18 @@ def viewer_html(meshes: Sequence[tuple[str, Mesh]], scalars: Sequence[np.ndarray
 
 def write_viewer(path: str | os.PathLike, meshes: Sequence[tuple[str, Mesh]],
                  scalars: Sequence[np.ndarray | None] | None = None, *, overwrite: bool = False, **options) -> Path:
-    """Write :func:`viewer_html` to ``path`` atomically (refusing to replace an
-    existing file unless ``overwrite``).  Returns the path."""
+    """Write :func:`viewer_html` to ``path`` atomically.
+
+    Arguments:
+        path: the HTML file.
+        meshes: (label, mesh) pairs, as for :func:`viewer_html`.
+        scalars: one per mesh, ``None`` or a per-vertex array.
+        overwrite: replace an existing file (default: refuse).
+        **options: ``shading``, ``title``, ``scalar_label``, ``scalar_range`` of
+            :func:`viewer_html`.
+
+    Returns:
+        The path written."""
     page = viewer_html(meshes, scalars, **options)
     return write_bytes_atomic(path, page.encode("utf-8"), overwrite=overwrite)
 

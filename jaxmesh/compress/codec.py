@@ -135,17 +135,23 @@ def compress(mesh: Mesh, keep: float = 0.1, bits: int = 12, *, basis: str = "lap
              patch_size: int | None = None, preserve_order: bool = False,
              dense_max: int = 1200) -> Compressed:
     """Encode ``mesh`` to ``.jxm`` bytes (see the module doc for the format).
-
-    ``keep`` ∈ (0, 1]: fraction of each patch's spectral coefficients kept;
-    ``bits`` ∈ [1, 30]: quantization step = largest bounding-box side · 2^-bits;
-    ``basis``: ``"laplacian"`` (Karni–Gotsman, default) or ``"umbrella"`` (the
-    thesis's K); ``patch_size``: target vertices per METIS patch (default
-    :func:`auto_patch_size`);
-    ``preserve_order``: also store the vertex permutation (≈ log2 V bits per
-    vertex) so that :func:`decompress` returns the original vertex order (the
-    faces are the same oriented triangles, in the decoder's order).
     Meshes with unused vertices are refused (remove them first).
-    """
+
+    Arguments:
+        mesh: the mesh (single).
+        keep: fraction of each patch's spectral coefficients kept, in (0, 1].
+        bits: quantization step = largest bounding-box side · 2^-bits, in [1, 30].
+        basis: ``"laplacian"`` (Karni–Gotsman, default) or ``"umbrella"`` (the
+            thesis's K).
+        patch_size: target vertices per METIS patch (default :func:`auto_patch_size`).
+        preserve_order: also store the vertex permutation (≈ log2 V bits per vertex)
+            so that :func:`decompress` returns the original vertex order (the faces
+            are the same oriented triangles, in the decoder's order).
+        dense_max: patches up to this many vertices use a dense eigensolver.
+
+    Returns:
+        A :class:`Compressed`: the bytes, the reconstruction exactly as
+        :func:`decompress` returns it, the vertex order and the size statistics."""
     patch_size = _check_arguments(mesh, keep, bits, basis, patch_size)
     v = np.asarray(mesh.vertices, np.float64)
     f = np.asarray(mesh.faces, np.int64)

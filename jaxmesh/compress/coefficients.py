@@ -28,6 +28,8 @@ def _mag_ctx(x: int) -> int:
 
 
 def encode_coefficients(blocks: list[np.ndarray]) -> bytes:
+    """Range-code the quantized coefficient blocks (module docstring), one (rank, 3)
+    int array per patch, into the section's bytes."""
     enc = RangeEncoder()
     zero, mag = Model(_CTX), Model(_CTX * 40)
     for q in blocks:
@@ -43,6 +45,8 @@ def encode_coefficients(blocks: list[np.ndarray]) -> bytes:
 
 
 def decode_coefficients(data: bytes, ranks: list[int]) -> list[np.ndarray]:
+    """Inverse of :func:`encode_coefficients` for patches of the given ``ranks``;
+    :class:`CodecError` on truncated or trailing data."""
     dec = RangeDecoder(data)
     zero, mag = Model(_CTX), Model(_CTX * 40)
     out = []
@@ -68,6 +72,7 @@ def decode_coefficients(data: bytes, ranks: list[int]) -> list[np.ndarray]:
 
 
 def encode_ranks(ranks: list[int]) -> bytes:
+    """Range-code the number of coefficients kept in each patch."""
     enc = RangeEncoder()
     mdl = Model(40)
     for r in ranks:
@@ -76,6 +81,8 @@ def encode_ranks(ranks: list[int]) -> bytes:
 
 
 def decode_ranks(data: bytes, parts: int) -> list[int]:
+    """Inverse of :func:`encode_ranks` for ``parts`` patches; :class:`CodecError` on
+    truncated or trailing data."""
     dec = RangeDecoder(data)
     mdl = Model(40)
     out = [dec.uint(mdl, 0) + 1 for _ in range(parts)]

@@ -73,6 +73,8 @@ def encode_labels(labels: np.ndarray, adjacency: sp.csr_matrix) -> bytes:
 
 
 def decode_labels(data: bytes, adjacency: sp.csr_matrix, parts: int) -> np.ndarray:
+    """Inverse of :func:`encode_labels`: the patch label of every vertex, decoded in
+    vertex order with the same neighbour contexts; :class:`CodecError` on bad data."""
     dec = RangeDecoder(data)
     hit, new, alt = Model(4), Model(2), Model(40)
     indptr, indices = adjacency.indptr.tolist(), adjacency.indices.tolist()

@@ -243,16 +243,28 @@ def denoise_files(inputs: Sequence[str | Path], out_dir: str | Path, method: str
                   suffix: str | None = None, report: str | Path | None = None,
                   progress: Callable[[int, int], None] | None = None,
                   share: tuple[int, int] | None = None) -> DatasetSummary:
-    """Denoise every mesh of ``inputs`` (files, directories, glob patterns:
-    :func:`expand_inputs`) with ``method`` and ``params`` into ``out_dir``
-    (same file name; ``suffix`` changes the format), in size buckets (module
-    docstring).  ``report``: a JSON-lines file, one line per input, appended to.
-    ``progress(done, total)`` is called after each batch.  Existing outputs are
-    skipped unless ``overwrite``.  ``ladder``: the ratio between padded sizes
-    (larger: fewer compiles, more padding).  ``share`` = (i, n): this process
-    takes every n-th input from the i-th (default ``(jax.process_index(),
-    jax.process_count())``, so after ``jax.distributed.initialize`` each process
-    of a cluster denoises its own share).  Returns a :class:`DatasetSummary`."""
+    """Denoise every mesh of ``inputs`` into ``out_dir`` in size buckets (module
+    docstring): one compiled program per (padded size, batch size).
+
+    Arguments:
+        inputs: files, directories and glob patterns (:func:`expand_inputs`).
+        out_dir: the output folder (same file names).
+        method: a registered method (``"auto"`` tunes per mesh).
+        params: the method's parameters; a continuous one may be ``"auto"``.
+        batch_size: meshes per compiled call.
+        ladder: the ratio between padded sizes (larger: fewer compiles, more padding).
+        overwrite: redo inputs whose output exists (default: skip them, so an
+            interrupted run resumes).
+        suffix: the output format (default: the input's).
+        report: a JSON-lines file, one line per input, appended to as the run goes.
+        progress: called as ``progress(done, total)`` after each batch.
+        share: ``(i, n)``: this process takes every n-th input from the i-th (default
+            ``(jax.process_index(), jax.process_count())``, so after
+            ``jax.distributed.initialize`` each process denoises its own share).
+
+    Returns:
+        A :class:`DatasetSummary` (counts, compiles, padding waste, seconds, one
+        record per input)."""
     from ..denoise import METHODS
     from ..io import load, save
 

@@ -293,8 +293,17 @@ def as_method(method: "str | Method") -> Method:
 
 
 def denoise(mesh: Mesh, method: "str | Method" = "kernel", **params) -> Mesh:
-    """``as_method(method)(mesh, **params)``: a registry name (clear error for an
-    unknown one) or a :class:`Method`."""
+    """Denoise ``mesh`` with a registered method: ``as_method(method)(mesh, **params)``.
+
+    Arguments:
+        mesh: the mesh (single or batched: every batch element is denoised).
+        method: a registry name (``jaxmesh denoise --list-methods`` lists them; an
+            unknown name is a clear error) or a :class:`Method` of your own.
+        **params: the method's parameters (defaults from the registry); each is
+            checked against its domain.
+
+    Returns:
+        The denoised mesh (same topology)."""
     return as_method(method)(mesh, **params)
 
 

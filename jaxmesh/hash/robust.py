@@ -106,10 +106,21 @@ def robust_hash(mesh: Mesh, *, samples: int = 40000, degree: int = 6, shells: in
                 smoothing: int = 10, seed: int = 0) -> MeshHash:
     """The affine-normalised spherical-harmonic hash of ``mesh`` (module docstring).
 
-    Deterministic (fixed ``seed``); invariant to translation, uniform scale,
-    rotation and vertex order up to the sampling of the surface, and robust to
-    the thesis's attacks.  Compare with :func:`jaxmesh.hash.similarity`.
-    """
+    Deterministic (fixed ``seed``); invariant to translation, uniform scale, rotation
+    and vertex order up to the sampling of the surface, and robust to the thesis's
+    attacks.  Compare two with :func:`jaxmesh.hash.similarity`.
+
+    Arguments:
+        mesh: the mesh (single).
+        samples: surface samples drawn (area-uniform).
+        degree: the largest spherical-harmonic degree.
+        shells: radial shells.
+        smoothing: Taubin λ|μ steps that denoise the mesh before it is sampled (step 1
+            of the module docstring).
+        seed: the sampling seed.
+
+    Returns:
+        A :class:`MeshHash` (``kind == "robust"``)."""
     if mesh.batch_shape:
         raise ValueError(f"robust_hash needs a single mesh, got batch shape {mesh.batch_shape}")
     for name, value, low in (("samples", samples, 100), ("shells", shells, 1), ("degree", degree, 0)):

@@ -28,10 +28,21 @@ def _finite(d: np.ndarray, sources: np.ndarray) -> np.ndarray:
 def mesh_statistics(mesh: Mesh, sources: int = 200, seed: int = 0, knn: int = 8,
                     spectrum_k: int | None = None, geodesics: tuple[str, ...] = ("edges", "knn", "heat"),
                     progress: Callable[[str], None] | None = None) -> dict:
-    """All ch.5 statistics of ``mesh``: a dict of scalars (``summary``) and
-    arrays (degree distribution, K_nn(k), C(k) both ways, spectra, geodesic
-    distances from ``sources`` seeded vertices by each method in ``geodesics``).
-    ``progress(stage)`` is called before each stage (the CLI prints it)."""
+    """All ch.5 statistics of ``mesh``.
+
+    Arguments:
+        mesh: the mesh (single).
+        sources: geodesic sources, sampled from ``seed``.
+        seed: the seed of the source sample.
+        knn: neighbours of the kNN graph.
+        spectrum_k: eigenvalues at each end of the spectra (default: the whole
+            spectrum up to 3000 vertices, else 20; :func:`laplacian_spectrum`).
+        geodesics: the geodesic methods: ``"edges"``, ``"knn"``, ``"heat"``.
+        progress: called with the name of each stage before it runs (the CLI prints it).
+
+    Returns:
+        A dict: ``summary`` (scalars) and the arrays (degree distribution, K_nn(k),
+        C(k) both ways, spectra, geodesic distances by each method)."""
     say = progress or (lambda stage: None)
     for name, value in (("sources", sources), ("knn", knn)):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:

@@ -197,10 +197,20 @@ def _denoise(mesh: Mesh, x, candidate: Candidate, aux: dict):
 def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequence[Candidate] = CANDIDATES,
                     *, taubin_path: bool = True, draws: int = 2, a: float = 0.5, key=0) -> AutoResult:
     """Pick the candidate with the least recorrupted normal-error estimate
-    (module docstring) and denoise ``noisy`` with it.  ``sigma``: the noise
-    standard deviation in mesh units (default: estimated).  ``candidates``: the
-    fixed ones; ``taubin_path``: also search the Taubin family's grid.  ``draws``
-    recorruptions per candidate, ``a`` the recorruption strength."""
+    (module docstring) and denoise ``noisy`` with it, blind.
+
+    Arguments:
+        noisy: the mesh to denoise (single).
+        sigma: the noise standard deviation in mesh units (default: estimated).
+        candidates: the fixed candidates (method, parameters).
+        taubin_path: also search the Taubin family's grid (λ, pass band, count).
+        draws: recorruptions per candidate.
+        a: the recorruption strength.
+        key: the key (or int seed) of the recorruptions.
+
+    Returns:
+        An :class:`AutoResult`: the method and parameters chosen, the denoised mesh,
+        the table of estimated risks."""
     from ..denoise import METHODS
 
     if not isinstance(noisy, Mesh):

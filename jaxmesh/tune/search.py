@@ -14,6 +14,8 @@ __all__ = ["search", "grid_axis", "parabola_start"]
 
 
 def grid_axis(n: int, dtype):
+    """The search grid of one coordinate: n cell midpoints t_k = (k + ½)/n in (0, 1)
+    and their logits u_k = log t_k − log(1 − t_k) (the unbounded coordinate)."""
     t = (jnp.arange(n, dtype=dtype) + 0.5) / n
     return t, jnp.log(t) - jnp.log1p(-t)
 

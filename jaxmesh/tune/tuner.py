@@ -281,21 +281,26 @@ def tune(noisy: Mesh, clean: Mesh | None = None, method: "str | Method" = "kerne
          options: TuneOptions | None = None, **keywords) -> TuneResult:
     """Tune ``method``'s continuous parameters on ``noisy`` (module docstring).
 
-    * ``method``: a registry name or a :class:`~jaxmesh.denoise.Method` (your own).
-    * With ``clean`` (same connectivity): minimise the objective ("visual" E,
-      "nonlinear" D, or "normal" mean face-normal angle) of the output against it.
-    * Without: blind — minimise SURE of E, with noise σ = ``sigma`` (mesh units)
-      or :func:`estimate_noise` of ``noisy``; Hutchinson probes drawn from ``key``.
-    * ``iterations``: an int, or several to choose from (each is tuned, the best
-      loss wins); default the method's own.
-    * ``options``: a :class:`TuneOptions` (which parameters, their ranges, the
-      objective, grid, BFGS tolerances and budget, probes); its fields may also be
-      given as keywords (``names=["lam"]``, ``grid=8``), which override it.  Other
-      keywords are the method's parameters, held fixed.
+    Jit-compiled once per method, options, iteration count and mesh shape.
 
-    Returns a :class:`TuneResult`.  Jit-compiled once per method, options,
-    iteration count and mesh shape.
-    """
+    Arguments:
+        noisy: the mesh to denoise.
+        clean: the clean mesh (same connectivity): minimise the objective ("visual" E,
+            "nonlinear" D, or "normal" mean face-normal angle) of the output against
+            it.  Without it, tune blind: minimise SURE of E.
+        method: a registry name or a :class:`~jaxmesh.denoise.Method` (your own).
+        iterations: an int, or several to choose from (each is tuned, the best loss
+            wins); default the method's own.
+        sigma: blind tuning's noise σ in mesh units (default: :func:`estimate_noise`).
+        key: the key (or int seed) of blind tuning's Hutchinson probes.
+        options: a :class:`TuneOptions` (which parameters, their ranges, the objective,
+            grid, BFGS tolerances and budget, probes).
+        **keywords: :class:`TuneOptions` fields (``names=["lam"]``, ``grid=8``), which
+            override ``options``; any other keyword is a method parameter, held fixed.
+
+    Returns:
+        A :class:`TuneResult`: the tuned parameters, the denoised mesh, the loss and
+        the search history."""
     _check_pair(noisy, clean)
     if noisy.batch_shape:
         raise ValueError("tune takes one mesh; use tune_batch for a batch")
