@@ -35,13 +35,25 @@ __all__ = [
 
 
 def edge_vectors(mesh: Mesh) -> Float[Array, "*batch E 3"]:
-    """e_ij = v_j - v_i for every undirected edge (i, j), i < j."""
+    """e_ij = v_j - v_i for every undirected edge (i, j), i < j.
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+
+    Returns:
+        (*batch, E, 3) array."""
     v = mesh.vertices
     return v[..., mesh.edges[:, 1], :] - v[..., mesh.edges[:, 0], :]
 
 
 def edge_lengths(mesh: Mesh) -> Float[Array, "*batch E"]:
-    """||e_ij|| = ||v_i - v_j|| (thesis ch.1 eq.5 entries)."""
+    """||e_ij|| = ||v_i - v_j|| (thesis ch.1 eq.5 entries).
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+
+    Returns:
+        (*batch, E) array."""
     return safe_norm(edge_vectors(mesh))
 
 
@@ -49,13 +61,25 @@ def mean_edge_length(mesh: Mesh) -> Float[Array, "*batch"]:
     """l_bar = (1/|E|) sum_{e_ij in E} ||e_ij||   (thesis ch.1 eq.4).
 
     Self-loop edges (i == j) never occur in a built mesh; they are the padding
-    of :func:`jaxmesh.batch.pad_batch` and are not counted."""
+    of :func:`jaxmesh.batch.pad_batch` and are not counted.
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+
+    Returns:
+        One value per mesh, (*batch)."""
     real = (mesh.edges[:, 0] != mesh.edges[:, 1]).astype(mesh.dtype)
     return jnp.sum(edge_lengths(mesh) * lift(real, mesh.vertices.ndim - 1), axis=-1) / jnp.maximum(jnp.sum(real), 1)
 
 
 def face_corners(mesh: Mesh) -> Float[Array, "*batch F 3 3"]:
-    """Positions of the three corners of each face: [..., f, k, :] = v_{faces[f, k]}."""
+    """Positions of the three corners of each face: [..., f, k, :] = v_{faces[f, k]}.
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+
+    Returns:
+        (*batch, F, 3, 3) array."""
     return mesh.vertices[..., mesh.faces, :]
 
 
@@ -73,7 +97,13 @@ def face_areas(mesh: Mesh, method: Literal["cross", "heron"] = "cross") -> Float
     unit base has sides that round to 0.5, 0.5, 1 in float64, area 0), so it is
     not the default.  The radicand is clamped at 0 and the square root guarded,
     so zero-area faces give area 0 and a finite gradient in both methods.
-    """
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+        method: ``"cross"`` (half the cross-product norm, default) or ``"heron"`` (thesis ch.1 eq.1).
+
+    Returns:
+        (*batch, F) array."""
     if method == "cross":
         return 0.5 * safe_norm(_face_cross(mesh))
     if method != "heron":
@@ -97,13 +127,25 @@ def _face_cross(mesh: Mesh) -> Float[Array, "*batch F 3"]:
 
 def face_normals(mesh: Mesh) -> Float[Array, "*batch F 3"]:
     """Unit normal n(t) = (v_1 - v_0) x (v_2 - v_0) / ||.||, counter-clockwise
-    orientation; zero for a zero-area face."""
+    orientation; zero for a zero-area face.
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+
+    Returns:
+        (*batch, F, 3) array."""
     return safe_normalize(_face_cross(mesh))
 
 
 def corner_angles(mesh: Mesh) -> Float[Array, "*batch F 3"]:
     """Interior angle at each corner, atan2(||e1 x e2||, e1 . e2) with e1, e2 the
-    two edges leaving the corner (stable for tiny and obtuse angles)."""
+    two edges leaving the corner (stable for tiny and obtuse angles).
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+
+    Returns:
+        (*batch, F, 3) array."""
     p = face_corners(mesh)
     e1 = jnp.roll(p, -1, axis=-2) - p
     e2 = jnp.roll(p, -2, axis=-2) - p
@@ -116,7 +158,12 @@ def corner_cotangents(mesh: Mesh) -> Float[Array, "*batch F 3"]:
     A corner of a degenerate face, ||e1 x e2|| <= eps (||e1||^2 + ||e2||^2) with eps
     the dtype's machine epsilon, gets cotangent 0 (scale-free guard).  The formula
     is :func:`cotangents_of_corners`, which host (numpy) code calls too.
-    """
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+
+    Returns:
+        (*batch, F, 3) array."""
     return cotangents_of_corners(face_corners(mesh))
 
 
@@ -124,7 +171,14 @@ def cotangents_of_corners(p, xp=jnp):
     """cot at each corner of triangles given by their corner positions p
     (..., 3, 3), with the degenerate-corner guard of :func:`corner_cotangents`.
     ``xp`` is ``jax.numpy`` (default; gradient-safe norm) or ``numpy`` (host
-    code: the same rule, in float64, without JAX)."""
+    code: the same rule, in float64, without JAX).
+
+    Arguments:
+        p: corner positions of triangles, (..., 3, 3).
+        xp: ``jax.numpy`` (default) or ``numpy`` (host code, float64, no JAX).
+
+    Returns:
+        The cotangent at each corner, (..., 3)."""
     e1 = xp.roll(p, -1, axis=-2) - p
     e2 = xp.roll(p, -2, axis=-2) - p
     c = xp.cross(e1, e2)
@@ -142,7 +196,14 @@ def voronoi_areas_of_corners(p, xp=jnp):
     (|e_j|² cot θ_j + |e_k|² cot θ_k) / 8 over the two edges e_j, e_k that meet at
     it (e_j opposite corner j); in an obtuse triangle the obtuse corner gets A/2 and
     the others A/4.  The three sum to the area A.  Cotangents (with their
-    degenerate-corner guard) from :func:`cotangents_of_corners`; ``xp`` as there."""
+    degenerate-corner guard) from :func:`cotangents_of_corners`; ``xp`` as there.
+
+    Arguments:
+        p: corner positions of triangles, (..., 3, 3).
+        xp: ``jax.numpy`` (default) or ``numpy`` (host code, float64, no JAX).
+
+    Returns:
+        The mixed Voronoi area of each corner, (..., 3)."""
     cot = cotangents_of_corners(p, xp)
     e = xp.roll(p, -2, axis=-2) - xp.roll(p, -1, axis=-2)            # edge opposite each corner
     l2 = xp.sum(e * e, axis=-1)
@@ -180,7 +241,13 @@ def vertex_normals(
     ``weighting``: ``"uniform"`` (w = 1, eq.2 — the 1/d_i factor vanishes in the
     normalisation), ``"angle"`` (w = interior angle of t_j at v_i) or ``"area"``
     (w = area(t_j)).  Isolated vertices get the zero vector.
-    """
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+        weighting: face weights: ``"area"`` (default), ``"angle"`` or ``"uniform"``.
+
+    Returns:
+        (*batch, V, 3) array."""
     n = face_normals(mesh)
     if weighting == "uniform":
         w = jnp.ones(n.shape[:-1], n.dtype)
@@ -199,7 +266,13 @@ def vertex_normals(
 
 
 def vertex_areas(mesh: Mesh) -> Float[Array, "*batch V"]:
-    """eta_i = sum of the areas of the triangles incident to v_i (thesis ch.4 eq.1)."""
+    """eta_i = sum of the areas of the triangles incident to v_i (thesis ch.4 eq.1).
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+
+    Returns:
+        (*batch, V) array."""
     a = face_areas(mesh)
     per_corner = jnp.stack([a, a, a], axis=-1)
     flat = per_corner.reshape(*per_corner.shape[:-2], -1)
@@ -209,14 +282,26 @@ def vertex_areas(mesh: Mesh) -> Float[Array, "*batch V"]:
 def vertex_voronoi_areas(mesh: Mesh) -> Float[Array, "*batch V"]:
     """Mixed Voronoi area of each vertex, the sum of :func:`voronoi_areas_of_corners`
     over its corners (the diagonal of libigl's Voronoi mass matrix).  Sums to the
-    surface area, like ``vertex_areas(mesh) / 3`` (the barycentric mass)."""
+    surface area, like ``vertex_areas(mesh) / 3`` (the barycentric mass).
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+
+    Returns:
+        (*batch, V) array."""
     per_corner = voronoi_areas_of_corners(face_corners(mesh))
     flat = per_corner.reshape(*per_corner.shape[:-2], -1)
     return segment_sum_scalars(flat, mesh.faces.reshape(-1), mesh.num_vertices)
 
 
 def bounding_box_diagonal(mesh: Mesh) -> Float[Array, "*batch"]:
-    """Length of the diagonal of the axis-aligned bounding box."""
+    """Length of the diagonal of the axis-aligned bounding box.
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+
+    Returns:
+        One value per mesh, (*batch)."""
     v = mesh.vertices
     return safe_norm(jnp.max(v, axis=-2) - jnp.min(v, axis=-2))
 

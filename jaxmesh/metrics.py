@@ -50,7 +50,13 @@ def visual_error(reference: Mesh, estimate) -> Float[Array, "*batch"]:
     GL(v_i) = v_i - (1/d_i) sum_{j ~ i} v_j   (thesis ch.2 eq.13, Karni & Gotsman).
 
     Both terms use the reference's connectivity.  Units: length squared.
-    """
+
+    Arguments:
+        reference: the reference mesh; its connectivity is used.
+        estimate: a mesh with the reference's connectivity, or its vertices (*batch, V, 3).
+
+    Returns:
+        One value per mesh, (*batch)."""
     x = _positions(reference, estimate)
     v = lift(reference.vertices, x.ndim)
     diff = v - x
@@ -60,7 +66,14 @@ def visual_error(reference: Mesh, estimate) -> Float[Array, "*batch"]:
 
 
 def cauchy_weight(x: Array, c: float | Array = CAUCHY_C) -> Array:
-    """g(x) = 1 / (1 + x^2 / c^2)   (thesis ch.3 eq.10)."""
+    """g(x) = 1 / (1 + x^2 / c^2)   (thesis ch.3 eq.10).
+
+    Arguments:
+        x: the values (any shape).
+        c: the constant c (a number, or an array broadcasting with x).
+
+    Returns:
+        G(x), the shape of x."""
     return 1 / (1 + (x / c) ** 2)
 
 
@@ -68,7 +81,16 @@ def nonlinear_diffusion_operator(
     mesh: Mesh, x: Float[Array, "*batch V 3"], c: float = CAUCHY_C, variant: str = "paper"
 ) -> Float[Array, "*batch V 3"]:
     """𝒜(v_i) = (1/d_i) sum_{j ~ i} (v_i - v_j)(g(|∇v_i|) + g(|∇v_j|))  (thesis ch.3 eq.7),
-    |∇v_i| from :func:`jaxmesh.operators.gradient_magnitude` with ``variant``."""
+    |∇v_i| from :func:`jaxmesh.operators.gradient_magnitude` with ``variant``.
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+        x: positions, (*batch, V, 3).
+        c: the Cauchy constant, an absolute length (thesis: 2.3849).
+        variant: ``"paper"`` or ``"translation_invariant"`` gradient magnitudes.
+
+    Returns:
+        (*batch, V, 3) array."""
     g = cauchy_weight(gradient_magnitude(mesh, x, variant), c)
     phi = (g[..., mesh.src] + g[..., mesh.dst])[..., None]
     terms = phi * (x[..., mesh.src, :] - x[..., mesh.dst, :])
@@ -88,7 +110,15 @@ def nonlinear_visual_error(
     together wherever neighbouring degrees differ (a defect of the formula).
     ``variant="translation_invariant"`` uses sqrt(sum_j ||v_i - v_j||^2) instead.
     Note that c is an absolute length: D depends on the mesh's units.
-    """
+
+    Arguments:
+        reference: the reference mesh; its connectivity is used.
+        estimate: a mesh with the reference's connectivity, or its vertices (*batch, V, 3).
+        c: the Cauchy constant, an absolute length (thesis: 2.3849).
+        variant: ``"paper"`` (eq.8's gradient) or ``"translation_invariant"``.
+
+    Returns:
+        One value per mesh, (*batch)."""
     x = _positions(reference, estimate)
     v = lift(reference.vertices, x.ndim)
     diff = v - x
@@ -100,7 +130,14 @@ def nonlinear_visual_error(
 
 
 def rms_vertex_error(reference: Mesh, estimate) -> Float[Array, "*batch"]:
-    """sqrt( (1/m) sum_i ||v_i - v̂_i||^2 )."""
+    """sqrt( (1/m) sum_i ||v_i - v̂_i||^2 ).
+
+    Arguments:
+        reference: the reference mesh; its connectivity is used.
+        estimate: a mesh with the reference's connectivity, or its vertices (*batch, V, 3).
+
+    Returns:
+        One value per mesh, (*batch)."""
     x = _positions(reference, estimate)
     diff = lift(reference.vertices, x.ndim) - x
     return jnp.sqrt(jnp.mean(jnp.sum(diff * diff, axis=-1), axis=-1))
@@ -109,7 +146,14 @@ def rms_vertex_error(reference: Mesh, estimate) -> Float[Array, "*batch"]:
 def mean_normal_angle_error(reference: Mesh, estimate) -> Float[Array, "*batch"]:
     """Mean over faces of the angle, in degrees, between the reference's and the
     estimate's unit face normals: atan2(||n x n̂||, n . n̂).  Faces that are
-    degenerate in either mesh (zero normal) are left out of the mean."""
+    degenerate in either mesh (zero normal) are left out of the mean.
+
+    Arguments:
+        reference: the reference mesh; its connectivity is used.
+        estimate: a mesh with the reference's connectivity, or its vertices (*batch, V, 3).
+
+    Returns:
+        One value per mesh, (*batch)."""
     x = _positions(reference, estimate)
     n_ref = lift(face_normals(reference), x.ndim)
     n_est = face_normals(reference.with_vertices(x))
@@ -132,7 +176,15 @@ def point_triangle_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.n
     plane; otherwise the closest point lies on the boundary and the distance is
     the least of the three point–segment distances.  Degenerate triangles
     (zero area) fall through to the segment case.
-    """
+
+    Arguments:
+        p: points, (N, 3).
+        a: first corners of the triangles, (N, 3).
+        b: second corners, (N, 3).
+        c: third corners, (N, 3).
+
+    Returns:
+        The distance of each point to its triangle, (N,)."""
     p, a, b, c = (np.asarray(t, dtype=np.float64) for t in (p, a, b, c))
     ab, ac, ap = b - a, c - a, p - a
     d00, d01, d11 = (ab * ab).sum(1), (ab * ac).sum(1), (ac * ac).sum(1)
@@ -196,7 +248,18 @@ def sample_surface(vertices: np.ndarray, faces: np.ndarray, count: int, rng: np.
     systematic sampling of the area CDF (one uniform offset; lower variance: what
     the robust hash uses).  ``area``: face weights to use instead of the faces'
     areas (the robust hash samples its normalised surface with the original
-    areas)."""
+    areas).
+
+    Arguments:
+        vertices: the surface's vertices, (V, 3).
+        faces: its triangles, (F, 3).
+        count: the number of points.
+        rng: the numpy generator to draw from.
+        systematic: systematic sampling of the area CDF instead of independent draws.
+        area: face weights to use instead of the faces' areas.
+
+    Returns:
+        The points, (count, 3)."""
     tri = vertices[faces]
     if area is None:
         area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
@@ -228,7 +291,15 @@ def surface_distance(a, b, samples: int = 20000, seed: int = 0) -> dict[str, flo
     * ``diagonal``: the bounding-box diagonal of ``a``, for relative errors.
 
     ``a`` and ``b`` are :class:`Mesh` objects or ``(vertices, faces)`` pairs.
-    """
+
+    Arguments:
+        a: the first surface (its bounding-box diagonal is reported).
+        b: the second surface.
+        samples: points drawn on each surface.
+        seed: the sampling seed.
+
+    Returns:
+        A dict with ``rms``, ``mean``, ``hausdorff`` and ``diagonal`` (see above)."""
     def arrays(m):
         if isinstance(m, Mesh):
             if m.batch_shape:

@@ -9,13 +9,15 @@ import re
 
 import jaxmesh
 
-STRUCTURED = [   # module, function: the first calls of the getting-started page and the guides
+STRUCTURED = [   # the first calls of the getting-started page and the guides, and the core modules
     ("jaxmesh.io", "load"), ("jaxmesh.io", "save"), ("jaxmesh.noise", "add_noise"),
     ("jaxmesh.transforms", "normalize"), ("jaxmesh.denoise", "denoise"), ("jaxmesh.tune", "tune"),
     ("jaxmesh.tune", "choose_denoiser"), ("jaxmesh.compress", "compress"), ("jaxmesh.hash", "robust_hash"),
     ("jaxmesh.stats", "mesh_statistics"), ("jaxmesh.dataset", "denoise_files"), ("jaxmesh.view", "viewer_html"),
     ("jaxmesh.view", "write_viewer"), ("jaxmesh.view", "vertex_distances"),
-    *[("jaxmesh.vf", name) for name in importlib.import_module("jaxmesh.vf").__all__],
+    *[(module, name) for module in ("jaxmesh.vf", "jaxmesh.geometry", "jaxmesh.operators", "jaxmesh.metrics")
+      for name in importlib.import_module(module).__all__
+      if inspect.isfunction(getattr(importlib.import_module(module), name))],
 ]
 
 
