@@ -15,7 +15,8 @@ STRUCTURED = [   # the first calls of the getting-started page and the guides, a
     ("jaxmesh.tune", "choose_denoiser"), ("jaxmesh.compress", "compress"), ("jaxmesh.hash", "robust_hash"),
     ("jaxmesh.stats", "mesh_statistics"), ("jaxmesh.dataset", "denoise_files"), ("jaxmesh.view", "viewer_html"),
     ("jaxmesh.view", "write_viewer"), ("jaxmesh.view", "vertex_distances"),
-    *[(module, name) for module in ("jaxmesh.vf", "jaxmesh.geometry", "jaxmesh.operators", "jaxmesh.metrics")
+    *[(module, name) for module in ("jaxmesh.vf", "jaxmesh.geometry", "jaxmesh.operators", "jaxmesh.metrics",
+                                    "jaxmesh.sparse")
       for name in importlib.import_module(module).__all__
       if inspect.isfunction(getattr(importlib.import_module(module), name))],
 ]
