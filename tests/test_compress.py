@@ -346,6 +346,9 @@ def test_codec_preserve_order_and_umbrella_and_fallback(spot):
     v = np.asarray(spot.vertices)
     assert np.sqrt(np.mean(np.sum((np.asarray(d.vertices) - v) ** 2, 1))) < 1e-2 * np.ptp(v, 0).max()
     assert jaxmesh.compress.inspect(c.data)["basis"] == "umbrella"
+    # the per-vertex errors (the viewer's colouring) are the relative error's, vertex by vertex
+    diag = float(np.linalg.norm(np.ptp(v, 0)))
+    assert np.sqrt(np.mean(c.vertex_errors(spot) ** 2)) / diag == pytest.approx(c.relative_error(spot), rel=1e-12)
     v, f = three_faces_on_an_edge()
     mesh = jaxmesh.Mesh.from_arrays(v, f, warn=False)
     c = jaxmesh.compress.compress(mesh, keep=1.0, bits=20)

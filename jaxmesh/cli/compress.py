@@ -60,9 +60,7 @@ def run(args) -> int:
     else:
         save_compressed(c, out, overwrite=args.force)
     _report(args, out, label, {"vertices": mesh.num_vertices, **c.stats}, c.relative_error(mesh))
-    if args.view:     # each reconstructed vertex against the original vertex it came from (c.order)
-        error = np.linalg.norm(np.asarray(c.mesh.vertices, np.float64)
-                               - np.asarray(mesh.vertices, np.float64)[c.order], axis=-1)
+    if args.view:
         write_view(args, [(label, mesh), (f"{out} (decoded)", c.mesh)],
-                   [np.zeros(mesh.num_vertices), error], scalar_label="vertex error")
+                   [np.zeros(mesh.num_vertices), c.vertex_errors(mesh)], scalar_label="vertex error")
     return 0

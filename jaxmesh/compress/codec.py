@@ -90,6 +90,12 @@ class Compressed:
     def bits_per_vertex(self) -> float:
         return 8 * len(self.data) / self.mesh.num_vertices
 
+    def vertex_errors(self, original: Mesh) -> np.ndarray:
+        """Distance of each reconstructed vertex to the ``original`` vertex it codes
+        (matched through ``order``), in the reconstruction's vertex order."""
+        recon = np.asarray(self.mesh.vertices, np.float64)
+        return np.linalg.norm(recon - np.asarray(original.vertices, np.float64)[self.order], axis=-1)
+
     def relative_error(self, original: Mesh) -> float:
         """RMS vertex error of the reconstruction against ``original`` (matched through
         ``order``), over the bounding-box diagonal of ``original``."""
