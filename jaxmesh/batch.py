@@ -57,7 +57,14 @@ def pad_batch(meshes: Sequence[Mesh], pad_to: tuple[int, int, int] | None = None
     All meshes must share a dtype; batched meshes are refused.  ``pad_to``:
     (vertices, faces, edges) to pad to, so that batches of similar meshes share
     one shape (and one compiled program); it must leave at least one padding
-    vertex and edge (default: the largest sizes plus one)."""
+    vertex and edge (default: the largest sizes plus one).
+
+    Arguments:
+        meshes: single meshes of any sizes, one dtype.
+        pad_to: (vertices, faces, edges) to pad to (default: the largest sizes plus one).
+
+    Returns:
+        A :class:`PaddedBatch`: the padded mesh with vertices (B, V, 3) and the true sizes."""
     meshes = list(meshes)
     if not meshes:
         raise ValueError("pad_batch needs at least one mesh")
@@ -100,7 +107,15 @@ def batch_spec(pad_to: tuple[int, int, int], count: int, dtype) -> Mesh:
     """The abstract mesh (leaves ``jax.ShapeDtypeStruct``) of a padded batch of
     ``count`` meshes padded to ``pad_to`` = (vertices, faces, edges): what
     :func:`pad_batch` builds, for ahead-of-time lowering (``jit(f).lower(spec)``).
-    Derived from padding one triangle, so it cannot drift from :func:`pad_batch`."""
+    Derived from padding one triangle, so it cannot drift from :func:`pad_batch`.
+
+    Arguments:
+        pad_to: (vertices, faces, edges) every mesh is padded to.
+        count: the batch size B.
+        dtype: the positions' dtype.
+
+    Returns:
+        A :class:`~jaxmesh.Mesh` whose leaves are ``jax.ShapeDtypeStruct`` (vertices (B, V, 3))."""
     tri = Mesh.from_arrays(np.eye(3), np.array([[0, 1, 2]]), dtype=dtype, warn=False)
     one = pad_batch([tri], pad_to=pad_to).mesh
     return jax.tree.map(lambda a: jax.ShapeDtypeStruct((int(count),) + a.shape[1:], a.dtype), one)
@@ -109,7 +124,14 @@ def batch_spec(pad_to: tuple[int, int, int], count: int, dtype) -> Mesh:
 def unpad(batch: PaddedBatch, result=None) -> list[Mesh]:
     """The batch's meshes cut back to their true sizes.  ``result`` (a Mesh as
     returned by a vmapped denoiser, or a vertex array (B, V_pad, 3)) replaces
-    the positions; without it the input positions are returned."""
+    the positions; without it the input positions are returned.
+
+    Arguments:
+        batch: the padded batch.
+        result: a denoised batched mesh or vertex array (B, V_pad, 3) (default: the input positions).
+
+    Returns:
+        One single mesh per batch element, at its true size."""
     x = batch.mesh.vertices if result is None else (
         result.vertices if isinstance(result, Mesh) else jnp.asarray(result))
     host = {k: np.asarray(getattr(batch.mesh, k)) for k in ("faces", "edges", "face_edges", "src", "dst",
@@ -131,7 +153,13 @@ def shard(batch, devices=None):
     split; the shared topology is replicated), a :class:`PaddedBatch` (every
     array is split) or any array.  The batch size must be a multiple of the
     device count.
-    """
+
+    Arguments:
+        batch: a batched mesh, a :class:`PaddedBatch` or an array with a leading batch axis.
+        devices: the devices to lay the batch over (default: ``jax.devices()``).
+
+    Returns:
+        The same structure, placed with a ``NamedSharding`` over the batch axis."""
     devices = list(jax.devices() if devices is None else devices)
     grid = DeviceMesh(np.array(devices), ("batch",))
     split = NamedSharding(grid, PartitionSpec("batch"))

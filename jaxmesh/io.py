@@ -74,7 +74,14 @@ def _read_ply(p: Path):
 
 def merge_duplicate_vertices(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Merge exactly coincident vertices (first occurrence kept, order kept) and
-    drop faces that become index-degenerate."""
+    drop faces that become index-degenerate.
+
+    Arguments:
+        vertices: positions, (V, 3).
+        faces: triangles, (F, 3) integer vertex indices.
+
+    Returns:
+        (vertices, faces) with each position once."""
     _, first, inverse = np.unique(vertices, axis=0, return_index=True, return_inverse=True)
     inverse = inverse.ravel()
     keep = np.sort(first)  # survivors in original order

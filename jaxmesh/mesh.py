@@ -40,7 +40,13 @@ def build_topology(faces: np.ndarray, num_vertices: int) -> dict[str, np.ndarray
       every edge) sorted by ``(src, dst)``; ``edge_of`` maps a directed edge to its
       undirected edge;
     * ``degree`` (V,): number of distinct neighbours d_i.
-    """
+
+    Arguments:
+        faces: triangles, (F, 3) integer vertex indices.
+        num_vertices: the vertex count V (isolated vertices included).
+
+    Returns:
+        A dict of int32 arrays (listed above)."""
     f = np.asarray(faces, dtype=np.int64)
     m = int(num_vertices)
     a = f[:, [1, 2, 0]]

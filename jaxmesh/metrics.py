@@ -73,7 +73,7 @@ def cauchy_weight(x: Array, c: float | Array = CAUCHY_C) -> Array:
         c: the constant c (a number, or an array broadcasting with x).
 
     Returns:
-        G(x), the shape of x."""
+        g(x), the shape of x."""
     return 1 / (1 + (x / c) ** 2)
 
 

@@ -15,7 +15,14 @@ __all__ = ["view_rotation", "render"]
 
 
 def view_rotation(elev: float, azim: float) -> np.ndarray:
-    """Rotation that looks at the origin from elevation/azimuth in degrees (y up)."""
+    """Rotation that looks at the origin from elevation/azimuth in degrees (y up).
+
+    Arguments:
+        elev: the elevation, degrees.
+        azim: the azimuth, degrees.
+
+    Returns:
+        A (3, 3) rotation matrix."""
     e, a = np.radians(elev), np.radians(azim)
     ry = np.array([[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]])
     rx = np.array([[1, 0, 0], [0, np.cos(e), -np.sin(e)], [0, np.sin(e), np.cos(e)]])
@@ -28,7 +35,20 @@ def render(mesh, ax=None, elev: float = 15.0, azim: float = 20.0, color=(0.75, 0
     (a new figure's axes if None) and return the axes.  ``up`` names the
     model's up axis ("y" or "z"); ``center`` (3,) is the model point put at the
     middle of the view (default: the bounding-box centre), so that several
-    meshes can share one frame."""
+    meshes can share one frame.
+
+    Arguments:
+        mesh: a :class:`~jaxmesh.Mesh` or (vertices, faces).
+        ax: matplotlib 3-D axes to draw into (a new figure's when None).
+        elev: the elevation, degrees.
+        azim: the azimuth, degrees.
+        color: the surface's RGB colour.
+        title: the figure title.
+        up: the model's up axis, ``"y"`` (default) or ``"z"``.
+        center: the model point put at the middle of the view, (3,) (default: the bounding-box centre).
+
+    Returns:
+        The axes."""
     import matplotlib.pyplot as plt
     from matplotlib.collections import PolyCollection
 

@@ -30,27 +30,57 @@ __all__ = [
 
 
 def euler_characteristic(mesh: Mesh) -> int:
-    """χ = |V| - |E| + |T| (thesis ch.1 §1.3.3)."""
+    """χ = |V| - |E| + |T| (thesis ch.1 §1.3.3).
+
+    Arguments:
+        mesh: a single mesh.
+
+    Returns:
+        χ."""
     return mesh.num_vertices - mesh.num_edges + mesh.num_faces
 
 
 def edge_face_counts(mesh: Mesh) -> np.ndarray:
-    """Number of faces using each undirected edge (``mesh.edges`` order)."""
+    """Number of faces using each undirected edge (``mesh.edges`` order).
+
+    Arguments:
+        mesh: a single mesh.
+
+    Returns:
+        (E,) int array."""
     return np.bincount(np.asarray(mesh.face_edges).ravel(), minlength=mesh.num_edges)
 
 
 def boundary_edges(mesh: Mesh) -> np.ndarray:
-    """(B, 2) edges used by exactly one face."""
+    """(B, 2) edges used by exactly one face.
+
+    Arguments:
+        mesh: a single mesh.
+
+    Returns:
+        (B, 2) int array."""
     return np.asarray(mesh.edges)[edge_face_counts(mesh) == 1]
 
 
 def non_manifold_edges(mesh: Mesh) -> np.ndarray:
-    """(K, 2) edges used by more than two faces."""
+    """(K, 2) edges used by more than two faces.
+
+    Arguments:
+        mesh: a single mesh.
+
+    Returns:
+        (K, 2) int array."""
     return np.asarray(mesh.edges)[edge_face_counts(mesh) > 2]
 
 
 def boundary_loops(mesh: Mesh) -> int:
-    """Number of connected chains of boundary edges (holes, for a manifold mesh)."""
+    """Number of connected chains of boundary edges (holes, for a manifold mesh).
+
+    Arguments:
+        mesh: a single mesh.
+
+    Returns:
+        The count."""
     b = boundary_edges(mesh)
     if len(b) == 0:
         return 0
@@ -61,7 +91,13 @@ def boundary_loops(mesh: Mesh) -> int:
 
 
 def connected_components(mesh: Mesh) -> tuple[int, np.ndarray]:
-    """(count, labels) of the vertex graph; an isolated vertex is its own component."""
+    """(count, labels) of the vertex graph; an isolated vertex is its own component.
+
+    Arguments:
+        mesh: a single mesh.
+
+    Returns:
+        (count, labels (V,))."""
     m = mesh.num_vertices
     src, dst = np.asarray(mesh.src), np.asarray(mesh.dst)
     g = sp.coo_matrix((np.ones(len(src)), (src, dst)), shape=(m, m))
@@ -76,7 +112,12 @@ def non_manifold_vertices(mesh: Mesh) -> np.ndarray:
     (v, a, b); a manifold vertex (interior or boundary) has a connected link.
     Computed for all vertices at once: the nodes are the directed edges v -> a,
     and each face corner joins v -> a with v -> b.
-    """
+
+    Arguments:
+        mesh: a single mesh.
+
+    Returns:
+        Sorted vertex indices."""
     f = np.asarray(mesh.faces, dtype=np.int64)
     src, dst = np.asarray(mesh.src, np.int64), np.asarray(mesh.dst, np.int64)
     m = mesh.num_vertices
@@ -94,7 +135,13 @@ def non_manifold_vertices(mesh: Mesh) -> np.ndarray:
 
 def is_consistently_oriented(mesh: Mesh) -> bool:
     """True when no directed edge (a, b) is used by two faces (so every interior
-    edge is traversed once in each direction)."""
+    edge is traversed once in each direction).
+
+    Arguments:
+        mesh: a single mesh.
+
+    Returns:
+        A bool."""
     f = np.asarray(mesh.faces, dtype=np.int64)
     m = mesh.num_vertices
     he = (f * m + f[:, [1, 2, 0]]).ravel()
@@ -104,7 +151,13 @@ def is_consistently_oriented(mesh: Mesh) -> bool:
 def genus(mesh: Mesh) -> int | None:
     """Genus g of a connected, orientable, manifold mesh from χ = 2 - 2g - b
     (b boundary loops); ``None`` where it is not defined (several components,
-    non-manifold, inconsistently oriented, or isolated vertices)."""
+    non-manifold, inconsistently oriented, or isolated vertices).
+
+    Arguments:
+        mesh: a single mesh.
+
+    Returns:
+        g, or None."""
     n_comp, _ = connected_components(mesh)
     if (
         n_comp != 1
@@ -120,7 +173,13 @@ def genus(mesh: Mesh) -> int | None:
 def face_adjacency(mesh: Mesh) -> np.ndarray:
     """(P, 2) pairs of faces (f < g) sharing an edge, sorted; on a non-manifold
     edge every pair of its faces is listed.  The face-neighbourhood of the
-    normal-filtering methods (Yagou et al., Fleishman et al.)."""
+    normal-filtering methods (Yagou et al., Fleishman et al.).
+
+    Arguments:
+        mesh: a single mesh.
+
+    Returns:
+        (P, 2) int array."""
     fe = np.asarray(mesh.face_edges).ravel()
     face = np.repeat(np.arange(mesh.num_faces), 3)
     order = np.argsort(fe, kind="stable")
@@ -137,7 +196,13 @@ def face_adjacency(mesh: Mesh) -> np.ndarray:
 
 
 def duplicate_vertices(mesh: Mesh) -> int:
-    """Number of vertices whose exact position repeats an earlier vertex."""
+    """Number of vertices whose exact position repeats an earlier vertex.
+
+    Arguments:
+        mesh: a single mesh.
+
+    Returns:
+        The count."""
     v = np.asarray(mesh.vertices)
     if v.ndim != 2:
         raise ValueError("duplicate_vertices needs a single mesh")
@@ -145,7 +210,13 @@ def duplicate_vertices(mesh: Mesh) -> int:
 
 
 def mesh_info(mesh: Mesh) -> dict:
-    """Everything ``jaxmesh info`` prints, as a JSON-ready dict."""
+    """Everything ``jaxmesh info`` prints, as a JSON-ready dict.
+
+    Arguments:
+        mesh: a single mesh.
+
+    Returns:
+        A JSON-ready dict: counts, boundary, components, χ, genus, manifoldness, orientation, mean edge length, box diagonal, degrees."""
     from .geometry import bounding_box_diagonal, mean_edge_length
 
     if mesh.batch_shape:

@@ -11,7 +11,13 @@ __all__ = ["normalize", "bounding_box_center", "unit_frame", "to_frame", "from_f
 
 
 def bounding_box_center(mesh: Mesh):
-    """Centre of the axis-aligned bounding box, shape (*batch, 3)."""
+    """Centre of the axis-aligned bounding box, shape (*batch, 3).
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+
+    Returns:
+        (*batch, 3)."""
     v = mesh.vertices
     return 0.5 * (jnp.max(v, axis=-2) + jnp.min(v, axis=-2))
 
@@ -21,7 +27,13 @@ def unit_frame(mesh: Mesh):
     of the bounding box of the vertices that have neighbours (isolated and
     padding vertices left out), c its centre and s its diagonal, so that
     v' = (v - c) / s has a unit diagonal.  A box of zero diagonal gets s = 1.
-    Used by :func:`normalize`, the CLI and the tuner alike."""
+    Used by :func:`normalize`, the CLI and the tuner alike.
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+
+    Returns:
+        (centre (*batch, 3), scale (*batch,))."""
     v = mesh.vertices
     used = lift((mesh.degree > 0)[:, None], v.ndim)
     hi = jnp.max(jnp.where(used, v, -jnp.inf), axis=-2)
@@ -31,12 +43,28 @@ def unit_frame(mesh: Mesh):
 
 
 def to_frame(mesh: Mesh, centre, scale) -> Mesh:
-    """v' = (v - c) / s."""
+    """v' = (v - c) / s.
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+        centre: c, (*batch, 3).
+        scale: s, (*batch,).
+
+    Returns:
+        The mesh with v' = (v − c) / s."""
     return mesh.with_vertices((mesh.vertices - centre[..., None, :]) / scale[..., None, None])
 
 
 def from_frame(mesh: Mesh, centre, scale) -> Mesh:
-    """v = v' s + c (the inverse of :func:`to_frame`)."""
+    """v = v' s + c (the inverse of :func:`to_frame`).
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+        centre: c, (*batch, 3).
+        scale: s, (*batch,).
+
+    Returns:
+        The mesh with v = v' s + c."""
     return mesh.with_vertices(mesh.vertices * scale[..., None, None] + centre[..., None, :])
 
 

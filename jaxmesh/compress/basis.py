@@ -74,7 +74,15 @@ class SpectralBasis:
 
 def fixed_vectors(m: int, k: int, salt: int = 0) -> np.ndarray:
     """(m, k) pseudo-random values in [−1, 1), the same on every machine:
-    splitmix64 of (row, column, salt), in numpy's wrapping uint64 arithmetic."""
+    splitmix64 of (row, column, salt), in numpy's wrapping uint64 arithmetic.
+
+    Arguments:
+        m: rows.
+        k: columns.
+        salt: a 64-bit salt that selects another sequence.
+
+    Returns:
+        (m, k) float64 array in [−1, 1)."""
     i = np.arange(m, dtype=np.uint64)[:, None]
     j = np.arange(k, dtype=np.uint64)[None, :]
     with np.errstate(over="ignore"):
@@ -143,7 +151,16 @@ def graph_basis(adjacency: sp.csr_matrix, r: int, kind: str = "umbrella", *,
     ``r`` is clipped to [1, V]; with ``extend_clusters`` it grows to the end of
     an eigenvalue cluster it would otherwise cut (the basis then has more than
     r columns), so the spanned space is well defined.
-    """
+
+    Arguments:
+        adjacency: the symmetric 0/1 vertex adjacency, (V, V) CSR.
+        r: the number of basis vectors, clipped to [1, V].
+        kind: ``"umbrella"`` (the thesis's K, default) or ``"laplacian"`` (Karni–Gotsman's L = D − A).
+        dense_max: matrices up to this size use a dense symmetric eigensolver, larger ones ARPACK.
+        extend_clusters: grow r to the end of an eigenvalue cluster it would cut.
+
+    Returns:
+        A :class:`SpectralBasis` (eigenvalues ascending, vectors (V, r') with r' ≥ r)."""
     n = adjacency.shape[0]
     if n == 0:
         raise ValueError("empty graph")
@@ -170,7 +187,17 @@ def graph_basis(adjacency: sp.csr_matrix, r: int, kind: str = "umbrella", *,
 
 def spectral_basis(mesh, r: int, kind: str = "umbrella", *, dense_max: int = 1200,
                    extend_clusters: bool = True) -> SpectralBasis:
-    """:func:`graph_basis` of a :class:`~jaxmesh.Mesh`'s vertex graph (r ≥ 1 columns)."""
+    """:func:`graph_basis` of a :class:`~jaxmesh.Mesh`'s vertex graph (r ≥ 1 columns).
+
+    Arguments:
+        mesh: a single mesh; only its connectivity is used.
+        r: the number of basis vectors, clipped to [1, V].
+        kind: ``"umbrella"`` (the thesis's K, default) or ``"laplacian"`` (Karni–Gotsman's L = D − A).
+        dense_max: matrices up to this size use a dense symmetric eigensolver, larger ones ARPACK.
+        extend_clusters: grow r to the end of an eigenvalue cluster it would cut.
+
+    Returns:
+        A :class:`SpectralBasis` (eigenvalues ascending, vectors (V, r') with r' ≥ r)."""
     if mesh.batch_shape:
         raise ValueError(f"spectral_basis needs a single mesh, got batch shape {mesh.batch_shape}")
     from ..sparse import adjacency_matrix

@@ -116,7 +116,13 @@ def auto_patch_size(keep: float) -> int:
     Bigger patches compress better (fewer seams, fewer label bits: on the bunny at
     keep = 0.02, 1.77 bits/vertex with 5 000-vertex patches against 2.02 with
     1 000) but the eigensolve grows with patch size × modes; at ~100 modes a
-    patch costs ~0.1–0.3 s."""
+    patch costs ~0.1–0.3 s.
+
+    Arguments:
+        keep: the fraction of coefficients kept, in (0, 1].
+
+    Returns:
+        The target patch size in vertices, between 1 000 and 3 000."""
     return int(np.clip(round(100 / keep), 1000, 3000))
 
 
@@ -267,7 +273,13 @@ def _parse(data: bytes):
 
 
 def inspect(data: bytes) -> dict:
-    """Header fields and section sizes of ``.jxm`` bytes (validated, not decoded)."""
+    """Header fields and section sizes of ``.jxm`` bytes (validated, not decoded).
+
+    Arguments:
+        data: ``.jxm`` bytes.
+
+    Returns:
+        A JSON-ready dict of the header fields and section sizes."""
     h = _parse(data)
     return {
         "format_version": h["version"],
@@ -283,7 +295,14 @@ def inspect(data: bytes) -> dict:
 
 def decompress(data: bytes, *, dense_max: int = 1200) -> Mesh:
     """The mesh coded in ``.jxm`` bytes.  Raises :class:`CodecError` naming the
-    problem for foreign, truncated, corrupt or unsupported data."""
+    problem for foreign, truncated, corrupt or unsupported data.
+
+    Arguments:
+        data: ``.jxm`` bytes (untrusted: every count and size is checked before use).
+        dense_max: matrices up to this size use a dense symmetric eigensolver, larger ones ARPACK.
+
+    Returns:
+        The decoded :class:`~jaxmesh.Mesh`."""
     h = _parse(data)
     dec = SimpleNamespace(n=h["n"], nf=h["nf"], parts=h["parts"], flags=h["flags"], step=h["step"],
                           kind="umbrella" if h["flags"] & _UMBRELLA else "laplacian", dense_max=dense_max)

@@ -29,7 +29,13 @@ def _mag_ctx(x: int) -> int:
 
 def encode_coefficients(blocks: list[np.ndarray]) -> bytes:
     """Range-code the quantized coefficient blocks (module docstring), one (rank, 3)
-    int array per patch, into the section's bytes."""
+    int array per patch, into the section's bytes.
+
+    Arguments:
+        blocks: one (rank, 3) array of quantized integer coefficients per patch.
+
+    Returns:
+        The section's bytes."""
     enc = RangeEncoder()
     zero, mag = Model(_CTX), Model(_CTX * 40)
     for q in blocks:
@@ -46,7 +52,14 @@ def encode_coefficients(blocks: list[np.ndarray]) -> bytes:
 
 def decode_coefficients(data: bytes, ranks: list[int]) -> list[np.ndarray]:
     """Inverse of :func:`encode_coefficients` for patches of the given ``ranks``;
-    :class:`CodecError` on truncated or trailing data."""
+    :class:`CodecError` on truncated or trailing data.
+
+    Arguments:
+        data: the encoded bytes (untrusted: every count is checked before use).
+        ranks: the number of coefficients of each patch.
+
+    Returns:
+        One (rank, 3) integer array per patch."""
     dec = RangeDecoder(data)
     zero, mag = Model(_CTX), Model(_CTX * 40)
     out = []
@@ -72,7 +85,13 @@ def decode_coefficients(data: bytes, ranks: list[int]) -> list[np.ndarray]:
 
 
 def encode_ranks(ranks: list[int]) -> bytes:
-    """Range-code the number of coefficients kept in each patch."""
+    """Range-code the number of coefficients kept in each patch.
+
+    Arguments:
+        ranks: the number of coefficients kept in each patch.
+
+    Returns:
+        The section's bytes."""
     enc = RangeEncoder()
     mdl = Model(40)
     for r in ranks:
@@ -82,7 +101,14 @@ def encode_ranks(ranks: list[int]) -> bytes:
 
 def decode_ranks(data: bytes, parts: int) -> list[int]:
     """Inverse of :func:`encode_ranks` for ``parts`` patches; :class:`CodecError` on
-    truncated or trailing data."""
+    truncated or trailing data.
+
+    Arguments:
+        data: the encoded bytes (untrusted: every count is checked before use).
+        parts: the number of patches.
+
+    Returns:
+        The rank of each patch."""
     dec = RangeDecoder(data)
     mdl = Model(40)
     out = [dec.uint(mdl, 0) + 1 for _ in range(parts)]

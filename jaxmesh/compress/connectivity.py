@@ -39,7 +39,15 @@ MAX_LZMA_RATIO = 16_384
 def lzma_exact(payload: bytes, size: int, what: str) -> bytes:
     """Decompress one lzma stream that must inflate to exactly ``size`` bytes,
     never producing more than ``size + 1`` bytes (a bounded decompression: a
-    corrupt or hostile stream cannot claim memory the header did not announce)."""
+    corrupt or hostile stream cannot claim memory the header did not announce).
+
+    Arguments:
+        payload: one lzma stream.
+        size: the exact size it must inflate to.
+        what: the section's name, for the error message.
+
+    Returns:
+        Exactly ``size`` bytes (else :class:`CodecError`)."""
     if size > MAX_LZMA_RATIO * len(payload) + 4096:
         raise ConnectivityError(f"{what}: {len(payload)} compressed bytes cannot hold the announced "
                                 f"{size} bytes (corrupt)")
@@ -92,7 +100,13 @@ def split_nonmanifold_vertices(faces: np.ndarray, num_vertices: int) -> tuple[np
     around it) keeps the first fan; the others get new vertices n, n+1, ….
     Returns ``(faces, copy_of)``, ``copy_of[i]`` the original of vertex n + i.
     Needs every directed edge at most once (else :class:`NotManifold`).
-    """
+
+    Arguments:
+        faces: triangles, (F, 3) integer vertex indices.
+        num_vertices: the vertex count n.
+
+    Returns:
+        ``(faces, copy_of)``: the faces with the new vertices, and the original of each new vertex."""
     import scipy.sparse as sp
     from scipy.sparse.csgraph import connected_components
 
@@ -121,7 +135,15 @@ def split_nonmanifold_vertices(faces: np.ndarray, num_vertices: int) -> tuple[np
 def encode_connectivity(faces: np.ndarray, num_vertices: int, *, allow_fallback: bool = True) -> ConnectivityCode:
     """Code ``faces`` losslessly: the traversal coder when the mesh is an orientable
     manifold (with or without boundary, any genus, any number of components),
-    else the fallback coder (or :class:`NotManifold` if ``allow_fallback`` is False)."""
+    else the fallback coder (or :class:`NotManifold` if ``allow_fallback`` is False).
+
+    Arguments:
+        faces: triangles, (F, 3) integer vertex indices.
+        num_vertices: the vertex count V.
+        allow_fallback: use the fallback coder for non-manifold input instead of raising.
+
+    Returns:
+        A :class:`ConnectivityCode` (the bytes, whether it fell back, the decoded vertex order and faces)."""
     n = int(num_vertices)
     try:
         split, copy_of = split_nonmanifold_vertices(faces, n)
@@ -158,7 +180,15 @@ def decode_connectivity(data: bytes, fallback: bool, num_vertices: int | None = 
     """Faces from a block written by :func:`encode_connectivity`.
 
     ``num_vertices``, when known (the codec's header), bounds the counts the
-    block announces before anything is allocated."""
+    block announces before anything is allocated.
+
+    Arguments:
+        data: the encoded bytes (untrusted: every count is checked before use).
+        fallback: whether the block was written by the fallback coder (the header says).
+        num_vertices: the vertex count from the codec's header, which bounds the block's counts (None: unbounded).
+
+    Returns:
+        The faces, (F, 3) int array."""
     try:
         if fallback:
             faces, n = fallback_decode(data)

@@ -28,7 +28,14 @@ __all__ = ["partition", "encode_labels", "decode_labels", "patch_adjacency"]
 
 
 def partition(adjacency: sp.csr_matrix, patch_size: int) -> np.ndarray:
-    """Labels (V,) of ~V / patch_size METIS parts, renumbered by first appearance."""
+    """Labels (V,) of ~V / patch_size METIS parts, renumbered by first appearance.
+
+    Arguments:
+        adjacency: the symmetric 0/1 vertex adjacency, (V, V) CSR.
+        patch_size: the target vertices per patch.
+
+    Returns:
+        Labels (V,) numbered by first appearance."""
     n = adjacency.shape[0]
     parts = max(1, int(round(n / max(int(patch_size), 1))))
     if parts == 1:
@@ -43,12 +50,26 @@ def partition(adjacency: sp.csr_matrix, patch_size: int) -> np.ndarray:
 
 
 def patch_adjacency(adjacency: sp.csr_matrix, index: np.ndarray) -> sp.csr_matrix:
-    """The induced subgraph on ``index`` (sorted vertex ids)."""
+    """The induced subgraph on ``index`` (sorted vertex ids).
+
+    Arguments:
+        adjacency: the symmetric 0/1 vertex adjacency, (V, V) CSR.
+        index: the patch's vertex ids, sorted.
+
+    Returns:
+        The induced (len(index), len(index)) CSR adjacency."""
     return adjacency[index][:, index].tocsr()
 
 
 def encode_labels(labels: np.ndarray, adjacency: sp.csr_matrix) -> bytes:
-    """Range-coded labels; the context is what the decoder already knows."""
+    """Range-coded labels; the context is what the decoder already knows.
+
+    Arguments:
+        labels: the patch label of every vertex, (V,).
+        adjacency: the symmetric 0/1 vertex adjacency, (V, V) CSR.
+
+    Returns:
+        The range-coded bytes."""
     enc = RangeEncoder()
     hit, new, alt = Model(4), Model(2), Model(40)
     indptr, indices = adjacency.indptr.tolist(), adjacency.indices.tolist()
@@ -74,7 +95,15 @@ def encode_labels(labels: np.ndarray, adjacency: sp.csr_matrix) -> bytes:
 
 def decode_labels(data: bytes, adjacency: sp.csr_matrix, parts: int) -> np.ndarray:
     """Inverse of :func:`encode_labels`: the patch label of every vertex, decoded in
-    vertex order with the same neighbour contexts; :class:`CodecError` on bad data."""
+    vertex order with the same neighbour contexts; :class:`CodecError` on bad data.
+
+    Arguments:
+        data: the encoded bytes (untrusted: every count is checked before use).
+        adjacency: the decoded mesh's vertex adjacency, (V, V) CSR (the neighbour contexts).
+        parts: the number of patches.
+
+    Returns:
+        The patch label of every vertex, (V,)."""
     dec = RangeDecoder(data)
     hit, new, alt = Model(4), Model(2), Model(40)
     indptr, indices = adjacency.indptr.tolist(), adjacency.indices.tolist()

@@ -21,7 +21,14 @@ __all__ = ["project", "project_orthonormal", "spectral_coefficients", "basis_cal
 
 
 def spectral_coefficients(basis: Float[Array, "V r"], x: Float[Array, "*batch V 3"]) -> Float[Array, "*batch r 3"]:
-    """Ĉ = (B_rᵀB_r)⁺ B_rᵀ V: the least-squares coefficients of eq.5."""
+    """Ĉ = (B_rᵀB_r)⁺ B_rᵀ V: the least-squares coefficients of eq.5.
+
+    Arguments:
+        basis: the basis B_r, (V, r).
+        x: positions, (*batch, V, 3).
+
+    Returns:
+        Ĉ, (*batch, r, 3)."""
     gram = basis.T @ basis
     return jnp.linalg.pinv(gram, hermitian=True) @ (basis.T @ x)
 
@@ -29,12 +36,26 @@ def spectral_coefficients(basis: Float[Array, "V r"], x: Float[Array, "*batch V 
 def project(basis: Float[Array, "V r"], x: Float[Array, "*batch V 3"]) -> Float[Array, "*batch V 3"]:
     """V̂ = B_r (B_rᵀB_r)⁺ B_rᵀ V   (thesis ch.3 eq.5): the orthogonal projection of
     each coordinate column onto span(B_r), for any (not necessarily orthonormal)
-    basis.  r = V with an invertible basis gives V back."""
+    basis.  r = V with an invertible basis gives V back.
+
+    Arguments:
+        basis: the basis B_r, (V, r).
+        x: positions, (*batch, V, 3).
+
+    Returns:
+        V̂, the shape of ``x``."""
     return basis @ spectral_coefficients(basis, x)
 
 
 def project_orthonormal(basis: Float[Array, "V r"], x: Float[Array, "*batch V 3"]) -> Float[Array, "*batch V 3"]:
-    """V̂ = B_r B_rᵀ V (Karni & Gotsman), valid when B_rᵀB_r = I."""
+    """V̂ = B_r B_rᵀ V (Karni & Gotsman), valid when B_rᵀB_r = I.
+
+    Arguments:
+        basis: the basis B_r, (V, r).
+        x: positions, (*batch, V, 3).
+
+    Returns:
+        V̂, the shape of ``x``."""
     return basis @ (basis.T @ x)
 
 
@@ -47,7 +68,15 @@ def _host_basis(faces: np.ndarray, num_vertices: int, r: int, kind: str, dtype) 
 def basis_callback(mesh: Mesh, r: int, kind: str = "umbrella") -> Float[Array, "V r"]:
     """The basis of :func:`jaxmesh.compress.spectral_basis` (exactly ``r`` columns,
     clusters not extended) computed on the host through ``jax.pure_callback``,
-    so it can be called inside ``jit``; a constant for differentiation."""
+    so it can be called inside ``jit``; a constant for differentiation.
+
+    Arguments:
+        mesh: a single mesh.
+        r: the number of basis vectors, clipped to [1, V].
+        kind: ``"umbrella"`` (the thesis's K, default) or ``"laplacian"`` (Karni–Gotsman's L = D − A).
+
+    Returns:
+        The basis, (V, r), a constant under differentiation."""
     if kind not in _basis.KINDS:
         raise ValueError(f"kind must be one of {_basis.KINDS}, got {kind!r}")
     m = mesh.num_vertices
@@ -65,7 +94,15 @@ def basis_callback(mesh: Mesh, r: int, kind: str = "umbrella") -> Float[Array, "
 
 def spectral_reconstruction(mesh: Mesh, r: int, kind: str = "umbrella") -> Float[Array, "*batch V 3"]:
     """V̂ for the r-vector ``kind`` basis: eq.5 for the umbrella basis, B Bᵀ V for
-    the orthonormal Laplacian one; differentiable in ``mesh.vertices``."""
+    the orthonormal Laplacian one; differentiable in ``mesh.vertices``.
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+        r: the number of basis vectors, clipped to [1, V].
+        kind: ``"umbrella"`` (the thesis's K, default) or ``"laplacian"`` (Karni–Gotsman's L = D − A).
+
+    Returns:
+        V̂, (*batch, V, 3)."""
     b = basis_callback(mesh, r, kind)
     if kind == "laplacian":
         return project_orthonormal(b, mesh.vertices)

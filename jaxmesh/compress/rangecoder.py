@@ -33,7 +33,13 @@ MAX_DECISIONS_PER_BYTE = 11_714
 
 
 def max_decisions(nbytes: int) -> int:
-    """The most binary decisions ``nbytes`` of range-coded data can hold."""
+    """The most binary decisions ``nbytes`` of range-coded data can hold.
+
+    Arguments:
+        nbytes: the size of the coded data.
+
+    Returns:
+        The bound, used to refuse a count no stream of that size can hold."""
     return MAX_DECISIONS_PER_BYTE * max(int(nbytes), 0) + 64
 
 

@@ -74,7 +74,14 @@ def _ctx_new(fa: int, fb: int, prev_new: int) -> int:
 def half_edges(faces: np.ndarray, n: int):
     """twin[h] for h = 3 f + k (the half-edge faces[f, k] → faces[f, k+1]), -1 on boundaries.
     Raises NotManifold for a repeated directed edge (an edge in more than two faces,
-    or two faces with inconsistent orientation)."""
+    or two faces with inconsistent orientation).
+
+    Arguments:
+        faces: triangles, (F, 3) integer vertex indices.
+        n: the vertex count.
+
+    Returns:
+        Twin (3F,) int array, −1 on boundary half-edges."""
     a = faces.reshape(-1).astype(np.int64)
     b = faces[:, [1, 2, 0]].reshape(-1).astype(np.int64)
     key = a * n + b
@@ -320,7 +327,14 @@ class _Encoder:
 
 def traversal_code(faces: np.ndarray, num_vertices: int) -> ConnectivityCode:
     """Code a manifold, orientable triangle mesh with the cut-border traversal.
-    Raises :class:`NotManifold` when the mesh is not one."""
+    Raises :class:`NotManifold` when the mesh is not one.
+
+    Arguments:
+        faces: triangles, (F, 3) integer vertex indices.
+        num_vertices: the vertex count V.
+
+    Returns:
+        A :class:`ConnectivityCode`."""
     faces = np.asarray(faces, np.int64)
     n = int(num_vertices)
     used = np.zeros(n, bool)

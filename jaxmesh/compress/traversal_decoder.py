@@ -114,7 +114,13 @@ class _Decoder:
 
 
 def traversal_decode(data: bytes) -> np.ndarray:
-    """Faces (F, 3) from a :func:`traversal_code` block, in the decoded numbering."""
+    """Faces (F, 3) from a :func:`traversal_code` block, in the decoded numbering.
+
+    Arguments:
+        data: a traversal block (untrusted).
+
+    Returns:
+        The faces, (F, 3), in the decoded vertex numbering."""
     if len(data) < 12:
         raise ConnectivityError("connectivity block too short")
     components = int.from_bytes(data[0:4], "little")

@@ -21,7 +21,13 @@ SAMPLES = {"bunny": "bunny.ply", "spot": "spot.ply"}
 
 
 def sample_path(name: str) -> Path:
-    """Path of the shipped sample file ``name`` (one of :data:`SAMPLES`)."""
+    """Path of the shipped sample file ``name`` (one of :data:`SAMPLES`).
+
+    Arguments:
+        name: a key of :data:`SAMPLES`.
+
+    Returns:
+        The file's path inside the installed package."""
     if name not in SAMPLES:
         raise ValueError(f"unknown sample {name!r}; available: {', '.join(sorted(SAMPLES))}")
     return Path(str(resources.files(__package__).joinpath(SAMPLES[name])))
@@ -29,7 +35,14 @@ def sample_path(name: str) -> Path:
 
 def load_sample(name: str = "bunny", **kwargs):
     """Load a shipped sample mesh as a :class:`jaxmesh.Mesh` (kwargs go to
-    :func:`jaxmesh.load`)."""
+    :func:`jaxmesh.load`).
+
+    Arguments:
+        name: a key of :data:`SAMPLES` (``"bunny"`` or ``"spot"``).
+        **kwargs: passed to :func:`jaxmesh.load`.
+
+    Returns:
+        The sample as a :class:`~jaxmesh.Mesh`."""
     from ..io import load
 
     return load(sample_path(name), **kwargs)

@@ -27,7 +27,14 @@ MESH_SUFFIXES = (".ply", ".obj", ".off", ".stl")
 
 
 def rung(n: int, ratio: float = LADDER_RATIO) -> int:
-    """The smallest ladder size ≥ n: ⌈LADDER_START · ratio^k⌉ for the least k ≥ 0."""
+    """The smallest ladder size ≥ n: ⌈LADDER_START · ratio^k⌉ for the least k ≥ 0.
+
+    Arguments:
+        n: a size (≥ 1).
+        ratio: the ladder's step (> 1).
+
+    Returns:
+        The ladder size."""
     if not ratio > 1:
         raise ValueError(f"the ladder ratio must be > 1, got {ratio!r}")
     if n <= LADDER_START:
@@ -56,7 +63,15 @@ def plan_batches(sizes: Sequence[tuple[int, int, int]], batch_size: int = 16,
                  ratio: float = LADDER_RATIO) -> list[Batch]:
     """Group meshes of (V, F, E) ``sizes`` into batches (module docstring): every
     index appears in exactly one batch; batches of one bucket share a shape.
-    ``ratio``: the ladder's step (fewer shapes and compiles, more padding)."""
+    ``ratio``: the ladder's step (fewer shapes and compiles, more padding).
+
+    Arguments:
+        sizes: (V, F, E) of every mesh.
+        batch_size: the most meshes per batch.
+        ratio: the ladder's step (> 1; larger: fewer shapes and compiles, more padding).
+
+    Returns:
+        The :class:`Batch` list (mesh indices, fill copies, padded shape)."""
     if isinstance(batch_size, bool) or not isinstance(batch_size, int) or batch_size < 1:
         raise ValueError(f"batch_size must be a positive int, got {batch_size!r}")
     buckets: dict[int, list[int]] = {}
@@ -75,7 +90,13 @@ def plan_batches(sizes: Sequence[tuple[int, int, int]], batch_size: int = 16,
 
 def expand_inputs(paths: Iterable[str]) -> list[Path]:
     """Files named directly, every mesh file (by suffix) in a named directory
-    (sorted, not recursive), or the matches of a glob pattern; each once, in order."""
+    (sorted, not recursive), or the matches of a glob pattern; each once, in order.
+
+    Arguments:
+        paths: file names, directories and glob patterns.
+
+    Returns:
+        The mesh files, each once, in order."""
     out: list[Path] = []
     for p in paths:
         path = Path(p)
@@ -93,7 +114,13 @@ def expand_inputs(paths: Iterable[str]) -> list[Path]:
 def peek_sizes(path: Path) -> tuple[int, int] | None:
     """(vertices, faces) from a PLY or OFF header (the first 64 KiB), or None when
     the file is of another format or its header cannot be read that way.  An
-    estimate for planning only: the mesh is checked when it is loaded."""
+    estimate for planning only: the mesh is checked when it is loaded.
+
+    Arguments:
+        path: a mesh file.
+
+    Returns:
+        (vertices, faces) from the header, or None."""
     suffix = path.suffix.lower()
     try:
         with open(path, "rb") as fh:

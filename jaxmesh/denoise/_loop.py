@@ -34,7 +34,13 @@ def check_iterations(iterations, name: str = "iterations") -> int:
 def progress(callback: Callable[[int], None]) -> Iterator[None]:
     """Call ``callback(i)`` after outer iteration i of every denoiser traced
     inside this context (a host callback inside the loop, so it works under
-    jit; nested loops are not reported).  Used by the CLI's progress bar."""
+    jit; nested loops are not reported).  Used by the CLI's progress bar.
+
+    Arguments:
+        callback: called with the iteration index i (from a host callback).
+
+    Returns:
+        A context manager."""
     token = _PROGRESS.set(callback)
     try:
         yield

@@ -35,7 +35,17 @@ def anisotropic_diffusion(
     mesh: Mesh, dt=0.25, c=1.0, iterations: int = 10,
     variant: Literal["paper", "random_walk"] = "random_walk",
 ) -> Mesh:
-    """``iterations`` steps of Zhang–Ben Hamza diffusion (module docstring)."""
+    """``iterations`` steps of Zhang–Ben Hamza diffusion (module docstring).
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+        dt: the time step.
+        c: the Cauchy scale, relative to the input's mean gradient magnitude.
+        iterations: the number of outer iterations (a Python int: the loop is compiled once).
+        variant: ``"random_walk"`` (default, translation invariant) or ``"paper"`` (the thesis's formula).
+
+    Returns:
+        The smoothed mesh."""
     if variant not in _GRADIENT:
         raise ValueError(f"variant must be one of {tuple(_GRADIENT)}, got {variant!r}")
     nd = mesh.vertices.ndim

@@ -33,7 +33,16 @@ __all__ = ["bilateral_denoising"]
 
 
 def bilateral_denoising(mesh: Mesh, sigma_c=1.0, sigma_s=1.0, iterations: int = 3) -> Mesh:
-    """``iterations`` bilateral steps (module docstring)."""
+    """``iterations`` bilateral steps (module docstring).
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+        sigma_c: the closeness width σ_c, in units of the mean edge length ℓ̄.
+        sigma_s: the similarity (height) width σ_s, in units of ℓ̄.
+        iterations: the number of outer iterations (a Python int: the loop is compiled once).
+
+    Returns:
+        The smoothed mesh."""
     ell = mean_edge_length(mesh)
     sc2 = (jnp.asarray(sigma_c, mesh.dtype) * ell)[..., None] ** 2
     ss2 = (jnp.asarray(sigma_s, mesh.dtype) * ell)[..., None] ** 2

@@ -46,7 +46,16 @@ __all__ = ["bilateral_normal_filtering", "joint_bilateral_denoising", "spatial_w
 def spatial_weights(
     mesh: Mesh, graph: FaceGraph, x: Float[Array, "*batch V 3"], sigma_s
 ) -> Float[Array, "*batch F K"]:
-    """A_g W_s(f, g) on the padded ring slots (0 on padding), σ_s = sigma_s · s̄."""
+    """A_g W_s(f, g) on the padded ring slots (0 on padding), σ_s = sigma_s · s̄.
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+        graph: the face graph.
+        x: positions, (*batch, V, 3).
+        sigma_s: the spatial kernel's width, in units of the mean centroid spacing s̄.
+
+    Returns:
+        (*batch, F, K) weights, 0 on padding slots."""
     geo = mesh.with_vertices(x)
     c = face_centroids(geo)
     s = jnp.asarray(sigma_s, x.dtype) * centroid_spacing(graph, c)
@@ -60,7 +69,17 @@ def joint_bilateral_normals(
     graph: FaceGraph, normals: Float[Array, "*batch F 3"], guidance: Float[Array, "*batch F 3"],
     weights: Float[Array, "*batch F K"], sigma_r,
 ) -> Float[Array, "*batch F 3"]:
-    """normalize( Σ_k weights[f, k] W_r(‖g_f − g_{ring[f,k]}‖) n_{ring[f,k]} ) (module docstring)."""
+    """normalize( Σ_k weights[f, k] W_r(‖g_f − g_{ring[f,k]}‖) n_{ring[f,k]} ) (module docstring).
+
+    Arguments:
+        graph: the face graph.
+        normals: unit face normals, (*batch, F, 3).
+        guidance: the guidance normals g, (*batch, F, 3).
+        weights: the spatial weights on the ring slots, (*batch, F, K) (:func:`spatial_weights`).
+        sigma_r: the range kernel's width on normal differences (dimensionless).
+
+    Returns:
+        The filtered unit normals, (*batch, F, 3)."""
     diff = guidance[..., :, None, :] - guidance[..., graph.ring, :]      # (*b, F, K, 3)
     t2 = jnp.sum(diff * diff, axis=-1)
     sr = lift(jnp.asarray(sigma_r, normals.dtype)[..., None, None], t2.ndim)
@@ -75,7 +94,21 @@ def joint_bilateral_denoising(
     """The two-step loop shared by bilateral and guided normal filtering:
     ``iterations`` rounds of (spatial weights at the current positions;
     ``normal_iterations`` passes n ← joint_bilateral_normals(n, guidance(graph, n, areas));
-    ``vertex_iterations`` steps of :func:`vertex_update` with ``tangential``)."""
+    ``vertex_iterations`` steps of :func:`vertex_update` with ``tangential``).
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+        guidance: maps (graph, normals, areas) to the guidance normals (the normals themselves for the bilateral filter).
+        sigma_s: the spatial kernel's width, in units of the mean centroid spacing s̄.
+        sigma_r: the range kernel's width on normal differences (dimensionless).
+        normal_iterations: normal-filtering passes per round.
+        vertex_iterations: vertex-update steps per round.
+        iterations: the number of outer iterations (a Python int: the loop is compiled once).
+        tangential: the tangential relaxation t per vertex-update step (0 = none).
+        graph: the face graph (required).
+
+    Returns:
+        The denoised mesh."""
     check_iterations(normal_iterations, "normal_iterations")
     check_iterations(vertex_iterations, "vertex_iterations")
     graph = face_graph(mesh) if graph is None else graph
@@ -100,6 +133,19 @@ def bilateral_normal_filtering(
 ) -> Mesh:
     """``iterations`` rounds of (bilateral normal filter ``normal_iterations``
     times, then ``vertex_iterations`` vertex updates with tangential relaxation
-    ``tangential``); module docstring."""
+    ``tangential``); module docstring.
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+        sigma_s: the spatial kernel's width, in units of the mean centroid spacing s̄.
+        sigma_r: the range kernel's width on normal differences (dimensionless).
+        normal_iterations: normal-filtering passes per round.
+        vertex_iterations: vertex-update steps per round.
+        iterations: the number of outer iterations (a Python int: the loop is compiled once).
+        tangential: the tangential relaxation t per vertex-update step (0 = none).
+        graph: the face graph from :func:`~jaxmesh.denoise.face_graph` (built from ``mesh`` when None).
+
+    Returns:
+        The denoised mesh."""
     return joint_bilateral_denoising(mesh, lambda graph, n, areas: n, sigma_s, sigma_r, normal_iterations,
                                      vertex_iterations, iterations, tangential, graph)

@@ -36,7 +36,15 @@ __all__ = ["cotangent_flow", "implicit_diffusion_step", "weighted_difference"]
 
 
 def weighted_difference(mesh: Mesh, x: Float[Array, "*batch V 3"], w: Float[Array, "*batch E"]):
-    """sum_{j~i} w_ij (x_j - x_i) for symmetric per-edge weights w (``mesh.edges`` order)."""
+    """sum_{j~i} w_ij (x_j - x_i) for symmetric per-edge weights w (``mesh.edges`` order).
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+        x: positions, (*batch, V, 3).
+        w: symmetric per-edge weights, (*batch, E) (``mesh.edges`` order).
+
+    Returns:
+        (*batch, V, 3)."""
     diff = x[..., mesh.dst, :] - x[..., mesh.src, :]
     return segment_sum_rows(w[..., mesh.edge_of, None] * diff, mesh.src, mesh.num_vertices)
 
@@ -56,7 +64,16 @@ def implicit_diffusion_step(
     ``stiffness`` must make K positive semi-definite (cotangent weights, or any
     FEM stiffness of a positive semi-definite per-face tensor).  All batch
     elements are solved in one CG run (the operator is block diagonal).
-    """
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+        x: positions, (*batch, V, 3).
+        stiffness: symmetric per-edge k_ij ≥ 0 on average, (*batch, E) (``mesh.edges`` order).
+        dt: the time step, in units of the mean vertex area.
+        max_steps: the CG iteration limit.
+
+    Returns:
+        x', (*batch, V, 3)."""
     geo = mesh.with_vertices(x)
     mass = vertex_areas(geo) / 3
     connected = jnp.maximum(jnp.sum(mesh.degree > 0), 1).astype(x.dtype)  # padding/isolated do not count
@@ -82,7 +99,16 @@ def implicit_diffusion_step(
 
 def cotangent_flow(mesh: Mesh, dt=0.5, iterations: int = 5, implicit: bool = False) -> Mesh:
     """Mean-curvature flow with cotangent weights (module docstring): ``implicit=False``
-    is the normalised explicit step, ``implicit=True`` backward Euler with CG."""
+    is the normalised explicit step, ``implicit=True`` backward Euler with CG.
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+        dt: the time step, in units of the mean vertex area.
+        iterations: the number of outer iterations (a Python int: the loop is compiled once).
+        implicit: backward Euler with CG instead of the explicit step.
+
+    Returns:
+        The smoothed mesh."""
     if implicit:
         def step(x):
             c = 0.5 * cotangent_weights(mesh.with_vertices(x))

@@ -85,7 +85,13 @@ def _host_arrays(mesh: Mesh) -> tuple[np.ndarray, np.ndarray, int]:
 
 
 def face_graph(mesh: Mesh) -> FaceGraph:
-    """Build the :class:`FaceGraph` of ``mesh`` (host, numpy; needs concrete faces)."""
+    """Build the :class:`FaceGraph` of ``mesh`` (host, numpy; needs concrete faces).
+
+    Arguments:
+        mesh: a mesh with concrete (not traced) faces.
+
+    Returns:
+        Its :class:`FaceGraph`."""
     faces, face_edges, ne = _host_arrays(mesh)
     nf, nv = faces.shape[0], mesh.num_vertices
     inc = sp.csr_matrix((np.ones(3 * nf), (np.repeat(np.arange(nf), 3), faces.reshape(-1))),
@@ -126,13 +132,26 @@ def face_graph(mesh: Mesh) -> FaceGraph:
 
 
 def face_centroids(mesh: Mesh) -> Float[Array, "*batch F 3"]:
-    """c_f = (v_a + v_b + v_c) / 3."""
+    """c_f = (v_a + v_b + v_c) / 3.
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+
+    Returns:
+        (*batch, F, 3)."""
     return jnp.mean(mesh.vertices[..., mesh.faces, :], axis=-2)
 
 
 def centroid_spacing(graph: FaceGraph, centroids: Float[Array, "*batch F 3"]) -> Float[Array, "*batch"]:
     """Mean distance between the centroids of edge-adjacent faces: the length
-    unit of the spatial kernels (Zheng et al. 2011's σ_c default)."""
+    unit of the spatial kernels (Zheng et al. 2011's σ_c default).
+
+    Arguments:
+        graph: the face graph.
+        centroids: face centroids, (*batch, F, 3).
+
+    Returns:
+        s̄ per mesh, (*batch)."""
     a = centroids[..., graph.edge_faces[:, 0], :]
     b = centroids[..., graph.edge_faces[:, 1], :]
     w = graph.edge_mask.astype(centroids.dtype)

@@ -21,7 +21,15 @@ __all__ = ["denoise_in_unit_frame", "framed_run"]
 def framed_run(mesh: Mesh, method: str | Method, **params) -> tuple[Mesh, Array]:
     """(``method`` run in ``mesh``'s unit frame and mapped back, whether it
     diverged): the jittable and vmappable core of :func:`denoise_in_unit_frame`
-    (auxiliary inputs must be given).  The dataset runner vmaps it."""
+    (auxiliary inputs must be given).  The dataset runner vmaps it.
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+        method: a registry name from :data:`~jaxmesh.denoise.METHODS` or a :class:`~jaxmesh.denoise.Method`.
+        **params: the method's parameters, auxiliary inputs included.
+
+    Returns:
+        (the denoised mesh, a bool per batch element: diverged)."""
     m = as_method(method)
     centre, scale = unit_frame(mesh)
     work = to_frame(mesh, centre, scale)
@@ -33,7 +41,15 @@ def denoise_in_unit_frame(mesh: Mesh, method: str | Method, **params) -> Mesh:
     """``method(mesh', **params)`` with mesh' = (mesh − c) / s (:func:`unit_frame`),
     mapped back by v = v' s + c.  Auxiliary inputs (the face graph) are built
     unless given.  Raises ``FloatingPointError`` when the run diverged
-    (non-finite, or a bounding box grown tenfold: :func:`diverged`)."""
+    (non-finite, or a bounding box grown tenfold: :func:`diverged`).
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+        method: a registry name from :data:`~jaxmesh.denoise.METHODS` or a :class:`~jaxmesh.denoise.Method`.
+        **params: the method's parameters.
+
+    Returns:
+        The denoised mesh, in ``mesh``'s units."""
     m = as_method(method)
     aux = {k: v for k, v in m.prepare(mesh).items() if params.get(k) is None}
     out, bad = framed_run(mesh, m, **{**params, **aux})

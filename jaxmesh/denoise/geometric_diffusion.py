@@ -41,7 +41,13 @@ def _dot(a, b):
 
 def face_curvatures(mesh: Mesh):
     """Per face: (κ_1, κ_2, w_1, w_2), the principal curvatures and directions of
-    the least-squares shape operator (module docstring).  Shapes (*b, F) and (*b, F, 3)."""
+    the least-squares shape operator (module docstring).  Shapes (*b, F) and (*b, F, 3).
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+
+    Returns:
+        (κ₁, κ₂, w₁, w₂): (*batch, F) curvatures and (*batch, F, 3) directions."""
     p = face_corners(mesh)                                   # (*b, F, 3, 3): corner k
     nv = vertex_normals(mesh, "area")[..., mesh.faces, :]   # (*b, F, 3, 3)
     n = face_normals(mesh)
@@ -76,7 +82,14 @@ def face_curvatures(mesh: Mesh):
 
 def anisotropic_stiffness(mesh: Mesh, rho) -> Float[Array, "*batch E"]:
     """Per-edge stiffness k_e = -sum_T A_T ∇φ_k^T a_T ∇φ_l (module docstring), with
-    G's scale ρ = ``rho`` (an absolute curvature, 1/length)."""
+    G's scale ρ = ``rho`` (an absolute curvature, 1/length).
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+        rho: the curvature scale ρ of G, in 1/length.
+
+    Returns:
+        per-edge stiffness, (*batch, E)."""
     k1, k2, w1, w2 = face_curvatures(mesh)
     rho = jnp.asarray(rho, mesh.dtype)[..., None]
     g1, g2 = cauchy_weight(k1, rho), cauchy_weight(k2, rho)          # G(κ) of the module docstring
@@ -92,7 +105,16 @@ def anisotropic_stiffness(mesh: Mesh, rho) -> Float[Array, "*batch E"]:
 
 def geometric_diffusion(mesh: Mesh, dt=0.3, rho=1.0, iterations: int = 3) -> Mesh:
     """``iterations`` semi-implicit steps of Clarenz-style anisotropic diffusion
-    (module docstring); ``rho`` in units of 1/ℓ̄, ``dt`` in units of the mean vertex area."""
+    (module docstring); ``rho`` in units of 1/ℓ̄, ``dt`` in units of the mean vertex area.
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+        dt: the time step, in units of the mean vertex area.
+        rho: the curvature scale, in units of 1/ℓ̄.
+        iterations: the number of outer iterations (a Python int: the loop is compiled once).
+
+    Returns:
+        The smoothed mesh."""
     rho_abs = jnp.asarray(rho, mesh.dtype) / mean_edge_length(mesh)
     rho_abs = jnp.where(jnp.isfinite(rho_abs), rho_abs, 1)
 

@@ -48,7 +48,14 @@ _EPS = 1e-9
 
 
 def patch_inconsistency(graph: FaceGraph, normals: Float[Array, "*batch F 3"]) -> Float[Array, "*batch F"]:
-    """H(P_j) = D(P_j) · R(P_j) for the patch P_j = N(j) of every face j (module docstring)."""
+    """H(P_j) = D(P_j) · R(P_j) for the patch P_j = N(j) of every face j (module docstring).
+
+    Arguments:
+        graph: the face graph.
+        normals: unit face normals, (*batch, F, 3).
+
+    Returns:
+        H(P_j) per face, (*batch, F)."""
     ring = normals[..., graph.ring, :]                                   # (*b, F, K, 3)
     dots = jnp.einsum("...ka,...la->...kl", ring, ring)
     pair = graph.ring_mask[:, :, None] & graph.ring_mask[:, None, :]
@@ -72,7 +79,15 @@ def _best_patch(graph: FaceGraph, h: Float[Array, "*batch F"]) -> Int[Array, "*b
 def guidance_normals(
     graph: FaceGraph, normals: Float[Array, "*batch F 3"], areas: Float[Array, "*batch F"]
 ) -> Float[Array, "*batch F 3"]:
-    """g_f: the area-weighted mean normal of f's most consistent candidate patch."""
+    """g_f: the area-weighted mean normal of f's most consistent candidate patch.
+
+    Arguments:
+        graph: the face graph.
+        normals: unit face normals, (*batch, F, 3).
+        areas: face areas, (*batch, F).
+
+    Returns:
+        The guidance normals g, (*batch, F, 3)."""
     best = _best_patch(graph, jax.lax.stop_gradient(patch_inconsistency(graph, normals)))
     weighted = jnp.where(graph.ring_mask[..., None], (areas[..., None] * normals)[..., graph.ring, :], 0)
     patch_mean = safe_normalize(jnp.sum(weighted, axis=-2))              # (*b, F, 3)
@@ -85,6 +100,19 @@ def guided_normal_filtering(
 ) -> Mesh:
     """``iterations`` rounds of (guided normal filter ``normal_iterations``
     times, then ``vertex_iterations`` vertex updates with tangential relaxation
-    ``tangential``); module docstring."""
+    ``tangential``); module docstring.
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+        sigma_s: the spatial kernel's width, in units of the mean centroid spacing s̄.
+        sigma_r: the range kernel's width on normal differences (dimensionless).
+        normal_iterations: normal-filtering passes per round.
+        vertex_iterations: vertex-update steps per round.
+        iterations: the number of outer iterations (a Python int: the loop is compiled once).
+        tangential: the tangential relaxation t per vertex-update step (0 = none).
+        graph: the face graph from :func:`~jaxmesh.denoise.face_graph` (built from ``mesh`` when None).
+
+    Returns:
+        The denoised mesh."""
     return joint_bilateral_denoising(mesh, guidance_normals, sigma_s, sigma_r, normal_iterations,
                                      vertex_iterations, iterations, tangential, graph)

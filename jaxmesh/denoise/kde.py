@@ -22,7 +22,16 @@ __all__ = ["kernel_density"]
 
 def kernel_density(mesh: Mesh, points: Float[Array, "P 3"], scale: float | None = None,
                    chunk: int = 1024) -> Float[Array, " P"]:
-    """f̂ at ``points`` (module docstring) for a single (unbatched) mesh."""
+    """f̂ at ``points`` (module docstring) for a single (unbatched) mesh.
+
+    Arguments:
+        mesh: a single mesh.
+        points: where to evaluate, (P, 3).
+        scale: the bandwidth factor s in H = s²Σ (default: Scott's rule m^{-1/7}; 1 is the thesis's).
+        chunk: points evaluated at once (memory O(chunk · m)).
+
+    Returns:
+        f̂ at each point, (P,)."""
     if mesh.batch_shape:
         raise ValueError("kernel_density takes a single mesh, not a batch")
     v = mesh.vertices

@@ -52,7 +52,15 @@ VARIANTS = ("paper", "random_walk")
 def neighborhood_covariances(
     mesh: Mesh, x: Float[Array, "*batch V 3"], lam
 ) -> Float[Array, "*batch V 3 3"]:
-    """H_i = sum_{j~i} (x_j - c_i)(x_j - c_i)^T + λ I, c_i the neighbour mean (eq.9, eq.12)."""
+    """H_i = sum_{j~i} (x_j - c_i)(x_j - c_i)^T + λ I, c_i the neighbour mean (eq.9, eq.12).
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+        x: positions, (*batch, V, 3).
+        lam: the regularisation λ > 0.
+
+    Returns:
+        H_i, (*batch, V, 3, 3)."""
     d = lift(mesh.degree.astype(x.dtype)[:, None], x.ndim)
     c = safe_divide(neighbor_sum(mesh, x), d)
     diff = x[..., mesh.dst, :] - c[..., mesh.src, :]
@@ -109,7 +117,15 @@ def kernel_weights(mesh: Mesh, x: Float[Array, "*batch V 3"], lam):
     """(κ_ij per directed edge (*batch, H), κ_ii per vertex (*batch, V)) — the
     off-diagonal and diagonal entries of the kernel matrix 𝒦 (eq.10):
     κ_ij = det(H_i)^{-1/2} (2π)^{-3/2} exp(-½ δ^T H_i^{-1} δ), δ = x_i - x_j,
-    κ_ii = det(H_i)^{-1/2} (2π)^{-3/2}."""
+    κ_ii = det(H_i)^{-1/2} (2π)^{-3/2}.
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+        x: positions, (*batch, V, 3).
+        lam: the regularisation λ > 0.
+
+    Returns:
+        (κ_ij (*batch, H), κ_ii (*batch, V))."""
     norm, p, _ = _kernel_parts(mesh, x, lam)
     return norm[..., mesh.src] * p, norm
 
@@ -119,7 +135,17 @@ def kernel_step(
     variant: Literal["paper", "random_walk"] = "random_walk",
     safeguard: bool = True,
 ) -> Float[Array, "*batch V 3"]:
-    """One Jacobi iteration of the kernel flow (see the module docstring)."""
+    """One Jacobi iteration of the kernel flow (see the module docstring).
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+        x: positions, (*batch, V, 3).
+        lam: the regularisation λ > 0.
+        variant: ``"random_walk"`` (default, translation invariant) or ``"paper"`` (the thesis's formula).
+        safeguard: cap the random-walk step so the flow cannot diverge.
+
+    Returns:
+        The positions after one step, (*batch, V, 3)."""
     norm, p, diff = _kernel_parts(mesh, x, lam)
     d = lift(mesh.degree.astype(x.dtype), x.ndim - 1)
     if variant == "paper":
@@ -153,7 +179,16 @@ def kernel_diffusion(
     ``variant="paper"`` is eq.7 exactly; ``"random_walk"`` (default) applies
     the same κ to x_j - x_i and is translation invariant (see the module doc);
     ``safeguard`` (random walk only) caps the step so the flow cannot diverge.
-    """
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+        lam: the regularisation λ > 0 (one per batch element, or one for all).
+        iterations: the number of outer iterations (a Python int: the loop is compiled once).
+        variant: ``"random_walk"`` (default, translation invariant) or ``"paper"`` (the thesis's formula).
+        safeguard: cap the random-walk step so the flow cannot diverge.
+
+    Returns:
+        The smoothed mesh."""
     if variant not in VARIANTS:
         raise ValueError(f"variant must be one of {VARIANTS}, got {variant!r}")
     x = iterate(lambda x: kernel_step(mesh, x, lam, variant, safeguard), mesh.vertices, iterations)

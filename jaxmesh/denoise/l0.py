@@ -62,7 +62,15 @@ BETA_START, BETA_END = 1e-3, 1e3
 
 def edge_operator(mesh: Mesh, graph: FaceGraph, x: Float[Array, "V 3"]):
     """(vertex indices (E, 4) of p₁, p₂, p₃, p₄, coefficients (E, 4) of D at positions x);
-    coefficients are 0 on boundary and non-manifold edges (module docstring)."""
+    coefficients are 0 on boundary and non-manifold edges (module docstring).
+
+    Arguments:
+        mesh: a single mesh.
+        graph: the face graph.
+        x: positions, (V, 3).
+
+    Returns:
+        (indices (E, 4), coefficients (E, 4))."""
     e = mesh.edges
     idx = jnp.stack([e[:, 0], graph.edge_apex[:, 0], e[:, 1], graph.edge_apex[:, 1]], axis=-1)
     p1, p2, p3, p4 = (x[..., idx[:, k], :] for k in range(4))
@@ -100,7 +108,14 @@ def _squares(idx, coef, num_vertices: int):
 
 
 def mean_dihedral_angle(mesh: Mesh, graph: FaceGraph) -> Float[Array, "*batch"]:
-    """γ̄: mean angle between the normals of the two faces of every interior edge."""
+    """γ̄: mean angle between the normals of the two faces of every interior edge.
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+        graph: the face graph.
+
+    Returns:
+        γ̄ per mesh, radians, (*batch)."""
     n = face_normals(mesh)
     a, b = n[..., graph.edge_faces[:, 0], :], n[..., graph.edge_faces[:, 1], :]
     cross = safe_norm(jnp.cross(a, b))
@@ -152,7 +167,17 @@ def l0_denoising(mesh: Mesh, lam=10.0, alpha=1.0, iterations: int = 40, graph: F
     """He & Schaefer 2013 (module docstring): ``iterations`` half-quadratic
     steps with β from 10⁻³ to 10³; ``lam`` and ``alpha`` scale the paper's
     defaults λ = 0.02 ℓ̄² γ̄ and α₀ = 0.1 γ̄.  Batched over leading vertex
-    dimensions (one parameter value per batch element, or one for all)."""
+    dimensions (one parameter value per batch element, or one for all).
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+        lam: the multiplier of the paper's default λ = 0.02 ℓ̄² γ̄.
+        alpha: the multiplier of the paper's default α₀ = 0.1 γ̄.
+        iterations: half-quadratic steps (β from 10⁻³ to 10³).
+        graph: the face graph from :func:`~jaxmesh.denoise.face_graph` (built from ``mesh`` when None).
+
+    Returns:
+        The denoised mesh."""
     check_iterations(iterations)
     graph = face_graph(mesh) if graph is None else graph
     x = mesh.vertices

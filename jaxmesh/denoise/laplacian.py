@@ -67,14 +67,33 @@ __all__ = ["laplacian_smoothing", "taubin_smoothing", "hc_smoothing"]
 
 
 def laplacian_smoothing(mesh: Mesh, lam=0.5, iterations: int = 10, boundary: str = "free") -> Mesh:
-    """``iterations`` explicit steps of x <- x + λ K x (umbrella flow)."""
+    """``iterations`` explicit steps of x <- x + λ K x (umbrella flow).
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+        lam: the step λ (0 < λ ≤ 1).
+        iterations: the number of outer iterations (a Python int: the loop is compiled once).
+        boundary: ``"free"`` (the papers' form, default) or ``"curve"`` (boundary vertices follow the boundary).
+
+    Returns:
+        The smoothed mesh."""
     k = smoothing_operator(mesh, boundary)
     lam = lift(jnp.asarray(lam, mesh.dtype)[..., None, None], mesh.vertices.ndim)
     return mesh.with_vertices(iterate(lambda x: x + lam * k(x), mesh.vertices, iterations))
 
 
 def taubin_smoothing(mesh: Mesh, lam=0.5, mu=-0.53, iterations: int = 10, boundary: str = "free") -> Mesh:
-    """``iterations`` Taubin pairs: x <- x + λ K x, then x <- x + μ K x (μ < -λ)."""
+    """``iterations`` Taubin pairs: x <- x + λ K x, then x <- x + μ K x (μ < -λ).
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+        lam: the shrinking step λ > 0.
+        mu: the inflating step μ < −λ.
+        iterations: the number of (λ, μ) pairs.
+        boundary: ``"free"`` (the papers' form, default) or ``"curve"`` (boundary vertices follow the boundary).
+
+    Returns:
+        The smoothed mesh."""
     k = smoothing_operator(mesh, boundary)
     lam = lift(jnp.asarray(lam, mesh.dtype)[..., None, None], mesh.vertices.ndim)
     mu = lift(jnp.asarray(mu, mesh.dtype)[..., None, None], mesh.vertices.ndim)
@@ -83,7 +102,17 @@ def taubin_smoothing(mesh: Mesh, lam=0.5, mu=-0.53, iterations: int = 10, bounda
 
 
 def hc_smoothing(mesh: Mesh, alpha=0.1, beta=0.5, iterations: int = 10, boundary: str = "free") -> Mesh:
-    """``iterations`` HC-Laplacian steps (Vollmer et al. 1999; module docstring)."""
+    """``iterations`` HC-Laplacian steps (Vollmer et al. 1999; module docstring).
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+        alpha: the weight α of the original positions (against the previous iterate) in the difference b.
+        beta: the weight β of a vertex's own difference b (1 − β goes to its neighbours' mean).
+        iterations: the number of outer iterations (a Python int: the loop is compiled once).
+        boundary: ``"free"`` (the papers' form, default) or ``"curve"`` (boundary vertices follow the boundary).
+
+    Returns:
+        The smoothed mesh."""
     k = smoothing_operator(mesh, boundary)
     alpha = lift(jnp.asarray(alpha, mesh.dtype)[..., None, None], mesh.vertices.ndim)
     beta = lift(jnp.asarray(beta, mesh.dtype)[..., None, None], mesh.vertices.ndim)

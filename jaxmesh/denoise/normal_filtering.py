@@ -52,14 +52,27 @@ class FaceRings(NamedTuple):
 
 def face_rings(mesh: Mesh) -> FaceRings:
     """N(f) for every face, built on the host (needs concrete ``mesh.faces``);
-    the ring part of :func:`~jaxmesh.denoise.face_graph`."""
+    the ring part of :func:`~jaxmesh.denoise.face_graph`.
+
+    Arguments:
+        mesh: a mesh with concrete (not traced) faces.
+
+    Returns:
+        Its :class:`FaceRings`."""
     g = face_graph(mesh)
     return FaceRings(g.ring, g.ring_mask)
 
 
 def ring_sum(mesh: Mesh, values: Float[Array, "*batch F d"]) -> Float[Array, "*batch F d"]:
     """sum_{g∈N(f)} values_g over the faces sharing a vertex with f (f included),
-    by segment sums: T_f - sum_{e∈f} U_e + values_f (module docstring)."""
+    by segment sums: T_f - sum_{e∈f} U_e + values_f (module docstring).
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+        values: per-face values, (*batch, F, d).
+
+    Returns:
+        The sums, (*batch, F, d)."""
     nv, ne = mesh.num_vertices, mesh.num_edges
     per_vertex = segment_sum_rows(jnp.repeat(values, 3, axis=-2), mesh.faces.reshape(-1), nv)
     per_edge = segment_sum_rows(jnp.repeat(values, 3, axis=-2), mesh.face_edges.reshape(-1), ne)
@@ -72,7 +85,17 @@ def filter_normals(
     mesh: Mesh, normals: Float[Array, "*batch F 3"], areas: Float[Array, "*batch F"],
     kind: Literal["mean", "median"] = "mean", rings: FaceRings | None = None,
 ) -> Float[Array, "*batch F 3"]:
-    """One pass of the mean or angle-median filter over N(f)."""
+    """One pass of the mean or angle-median filter over N(f).
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+        normals: unit face normals, (*batch, F, 3).
+        areas: face areas, (*batch, F).
+        kind: ``"mean"`` (area-weighted mean) or ``"median"`` (angle median).
+        rings: the face rings (built from ``mesh`` when None).
+
+    Returns:
+        The filtered unit normals, (*batch, F, 3)."""
     if kind == "mean":
         return safe_normalize(ring_sum(mesh, areas[..., None] * normals))
     if kind == "median":
@@ -96,7 +119,18 @@ def normal_filtering(
 ) -> Mesh:
     """Yagou et al. 2002 (module docstring): ``iterations`` rounds of
     (filter the face normals ``normal_iterations`` times, then
-    ``vertex_iterations`` steps of the shared vertex update)."""
+    ``vertex_iterations`` steps of the shared vertex update).
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+        iterations: the number of outer iterations (a Python int: the loop is compiled once).
+        normal_iterations: normal-filtering passes per round.
+        vertex_iterations: vertex-update steps per round.
+        kind: ``"mean"`` or ``"median"``.
+        graph: the face graph from :func:`~jaxmesh.denoise.face_graph` (built from ``mesh`` when None).
+
+    Returns:
+        The denoised mesh."""
     check_iterations(normal_iterations, "normal_iterations")
     check_iterations(vertex_iterations, "vertex_iterations")
     rings = None

@@ -277,7 +277,13 @@ DEPRECATED_NAMES = {"laplacian": "umbrella_flow", "anisotropic": "cauchy_diffusi
 def as_method(method: "str | Method") -> Method:
     """The :class:`Method` named ``method`` in :data:`METHODS`, or ``method`` itself
     when it is a ``Method`` already (a user's own, registered or not).  A name in
-    :data:`DEPRECATED_NAMES` gives its new method, with a ``DeprecationWarning``."""
+    :data:`DEPRECATED_NAMES` gives its new method, with a ``DeprecationWarning``.
+
+    Arguments:
+        method: a registry name or a :class:`Method`.
+
+    Returns:
+        The :class:`Method`."""
     if isinstance(method, Method):
         return method
     if not isinstance(method, str):
@@ -310,7 +316,15 @@ def denoise(mesh: Mesh, method: "str | Method" = "kernel", **params) -> Mesh:
 def diverged(before: Mesh, after: Mesh, growth: float = 10.0):
     """True (per batch element) where ``after`` has a non-finite coordinate or a
     bounding-box diagonal more than ``growth`` times that of ``before``: a
-    smoothing flow never enlarges a mesh, so growth means the run blew up."""
+    smoothing flow never enlarges a mesh, so growth means the run blew up.
+
+    Arguments:
+        before: the input mesh.
+        after: the output mesh.
+        growth: the largest allowed growth of the bounding-box diagonal.
+
+    Returns:
+        A bool array, (*batch)."""
     x = after.vertices
     finite = jnp.all(jnp.isfinite(x), axis=(-2, -1))
     grown = bounding_box_diagonal(after) > growth * bounding_box_diagonal(before)

@@ -48,7 +48,18 @@ def vertex_update(
     """``iterations`` steps of x_i ← x_i + Σ_{f∋i} w_f n_f (n_f·(c_f − x_i)) / Σ_{f∋i} w_f
     (module docstring; uniform w_f = 1 is Sun et al.'s update), each followed by
     the tangential relaxation x ← x + t P (K x) when ``tangential`` = t is not 0.
-    Isolated vertices do not move."""
+    Isolated vertices do not move.
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+        x: positions, (*batch, V, 3).
+        normals: the target face normals, (*batch, F, 3).
+        iterations: the number of steps.
+        weights: per-face weights w_f, (*batch, F) (default: uniform).
+        tangential: the tangential relaxation t per vertex-update step (0 = none).
+
+    Returns:
+        The updated positions, (*batch, V, 3)."""
     corners = mesh.faces.reshape(-1)
     w = jnp.ones(normals.shape[:-1], x.dtype) if weights is None else weights
     total = segment_sum_scalars(jnp.repeat(w, 3, axis=-1), corners, mesh.num_vertices)

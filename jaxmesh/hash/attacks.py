@@ -69,7 +69,16 @@ def _rebuild(vertices: np.ndarray, faces: np.ndarray, like: Mesh) -> Mesh:
 
 
 def scale_axis(mesh: Mesh, axis="x", factor: float = 1.5, seed: int = 0) -> Mesh:
-    """v' = v with coordinate ``axis`` multiplied by ``factor`` (about the origin)."""
+    """v' = v with coordinate ``axis`` multiplied by ``factor`` (about the origin).
+
+    Arguments:
+        mesh: a single mesh.
+        axis: ``"x"``, ``"y"`` or ``"z"`` (or 0, 1, 2).
+        factor: the scale factor.
+        seed: the seed of the attack's random choices (ignored by deterministic attacks).
+
+    Returns:
+        The attacked mesh."""
     _single(mesh)
     if not np.isfinite(factor) or factor == 0:
         raise ValueError(f"factor must be finite and non-zero, got {factor}")
@@ -92,7 +101,16 @@ def rotation_matrix(axis, degrees: float) -> np.ndarray:
 
 
 def rotate(mesh: Mesh, axis="x", degrees: float = 45.0, seed: int = 0) -> Mesh:
-    """v' = R v, R the rotation by ``degrees`` about coordinate ``axis`` through the origin."""
+    """v' = R v, R the rotation by ``degrees`` about coordinate ``axis`` through the origin.
+
+    Arguments:
+        mesh: a single mesh.
+        axis: ``"x"``, ``"y"`` or ``"z"`` (or 0, 1, 2).
+        degrees: the rotation angle.
+        seed: the seed of the attack's random choices (ignored by deterministic attacks).
+
+    Returns:
+        The attacked mesh."""
     _single(mesh)
     r = rotation_matrix(axis, degrees).astype(mesh.vertices.dtype)
     return mesh.with_vertices(mesh.vertices @ r.T)
@@ -100,7 +118,15 @@ def rotate(mesh: Mesh, axis="x", degrees: float = 45.0, seed: int = 0) -> Mesh:
 
 def translate(mesh: Mesh, offset=None, seed: int = 0) -> Mesh:
     """v' = v + t; by default t is a seeded random direction of length one
-    bounding-box diagonal."""
+    bounding-box diagonal.
+
+    Arguments:
+        mesh: a single mesh.
+        offset: the translation t, (3,) (default: a seeded direction, one diagonal long).
+        seed: the seed of the attack's random choices (ignored by deterministic attacks).
+
+    Returns:
+        The attacked mesh."""
     v, _ = _host(mesh)
     if offset is None:
         d = np.random.default_rng(seed).standard_normal(3)
@@ -112,13 +138,30 @@ def translate(mesh: Mesh, offset=None, seed: int = 0) -> Mesh:
 
 
 def smooth(mesh: Mesh, iterations: int = 10, lam: float = 0.5, seed: int = 0) -> Mesh:
-    """``iterations`` steps of Laplacian (umbrella) smoothing x <- x + λ K x."""
+    """``iterations`` steps of Laplacian (umbrella) smoothing x <- x + λ K x.
+
+    Arguments:
+        mesh: a single mesh.
+        iterations: the number of steps.
+        lam: the step λ.
+        seed: the seed of the attack's random choices (ignored by deterministic attacks).
+
+    Returns:
+        The attacked mesh."""
     _single(mesh)
     return laplacian_smoothing(mesh, lam=lam, iterations=iterations)
 
 
 def add_gaussian_noise(mesh: Mesh, sigma: float = 0.25, seed: int = 0) -> Mesh:
-    """Isotropic Gaussian noise of standard deviation σ = ``sigma`` · ℓ̄ (mean edge length)."""
+    """Isotropic Gaussian noise of standard deviation σ = ``sigma`` · ℓ̄ (mean edge length).
+
+    Arguments:
+        mesh: a single mesh.
+        sigma: the standard deviation, in units of the mean edge length ℓ̄.
+        seed: the seed of the attack's random choices (ignored by deterministic attacks).
+
+    Returns:
+        The attacked mesh."""
     _single(mesh)
     return add_noise(mesh, sigma, seed)
 
@@ -128,7 +171,14 @@ def simplify(mesh: Mesh, keep: float = 0.3, seed: int = 0) -> Mesh:
 
     The result has new vertices and connectivity; its face count is within a
     few faces of ``keep · F`` (the decimator stops on whole edge collapses).
-    """
+
+    Arguments:
+        mesh: a single mesh.
+        keep: the fraction of faces to keep.
+        seed: the seed of the attack's random choices (ignored by deterministic attacks).
+
+    Returns:
+        The attacked mesh."""
     if not 0 < keep <= 1:
         raise ValueError(f"keep must be in (0, 1], got {keep}")
     v, f = _host(mesh)
@@ -146,7 +196,14 @@ def simplify(mesh: Mesh, keep: float = 0.3, seed: int = 0) -> Mesh:
 
 
 def reorder_vertices(mesh: Mesh, seed: int = 0) -> Mesh:
-    """The same surface with its vertices (and faces) in a seeded random order."""
+    """The same surface with its vertices (and faces) in a seeded random order.
+
+    Arguments:
+        mesh: a single mesh.
+        seed: the seed of the attack's random choices (ignored by deterministic attacks).
+
+    Returns:
+        The attacked mesh."""
     v, f = _host(mesh)
     rng = np.random.default_rng(seed)
     perm = rng.permutation(len(v))          # new vertex i is old vertex perm[i]
@@ -158,7 +215,15 @@ def reorder_vertices(mesh: Mesh, seed: int = 0) -> Mesh:
 
 def crop(mesh: Mesh, fraction: float = 0.02, seed: int = 0) -> Mesh:
     """Cut away a small piece: the ``fraction`` of the vertices nearest (Euclidean)
-    to a seeded random vertex, with every face touching them."""
+    to a seeded random vertex, with every face touching them.
+
+    Arguments:
+        mesh: a single mesh.
+        fraction: the fraction of vertices to cut away.
+        seed: the seed of the attack's random choices (ignored by deterministic attacks).
+
+    Returns:
+        The attacked mesh."""
     if not 0 <= fraction < 1:
         raise ValueError(f"fraction must be in [0, 1), got {fraction}")
     v, f = _host(mesh)

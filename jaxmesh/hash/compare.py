@@ -23,7 +23,13 @@ def similarity(h1, h2) -> float:
     * two ``"robust"`` hashes: :func:`jaxmesh.hash.robust.robust_similarity`.
 
     Raises ``ValueError`` for hashes of different kinds or parameters.
-    """
+
+    Arguments:
+        h1: the first hash.
+        h2: the second hash.
+
+    Returns:
+        ρ in [0, 1]."""
     if isinstance(h1, MeshHash) and isinstance(h2, MeshHash):
         if h1.kind != h2.kind:
             raise ValueError(f"cannot compare a {h1.kind!r} hash with a {h2.kind!r} hash")
@@ -38,7 +44,14 @@ def similarity(h1, h2) -> float:
 
 
 def verdict(rho: float, kind: str) -> bool:
-    """True if ``rho`` says "same model" for hashes of ``kind`` (:data:`THRESHOLDS`)."""
+    """True if ``rho`` says "same model" for hashes of ``kind`` (:data:`THRESHOLDS`).
+
+    Arguments:
+        rho: a similarity from :func:`similarity`.
+        kind: ``"thesis"`` or ``"robust"``.
+
+    Returns:
+        True for the same model."""
     if kind not in THRESHOLDS:
         raise ValueError(f"unknown hash kind {kind!r}; one of {sorted(THRESHOLDS)}")
     return rho >= THRESHOLDS[kind]

@@ -22,7 +22,14 @@ def metis_partition(mesh: Mesh, parts: int, seed: int = 0) -> np.ndarray:
     Minimises the number of cut edges with parts of near-equal vertex counts
     (METIS's default 3% imbalance).  Raises ``ValueError`` when the mesh has
     fewer than ``parts`` vertices.  Every label is used (checked).
-    """
+
+    Arguments:
+        mesh: a single mesh.
+        parts: the number of parts (≤ V).
+        seed: METIS's seed.
+
+    Returns:
+        Labels (V,) in 0..parts−1, every label used."""
     if mesh.batch_shape:
         raise ValueError(f"metis_partition needs a single mesh, got batch shape {mesh.batch_shape}")
     m = mesh.num_vertices

@@ -50,7 +50,14 @@ class MeshHash:
 
 
 def cosine_similarity(h1, h2) -> float:
-    """ρ = |h₁ · h₂| / (‖h₁‖ ‖h₂‖) (thesis ch.4 eq.4); 0 if either vector is zero."""
+    """ρ = |h₁ · h₂| / (‖h₁‖ ‖h₂‖) (thesis ch.4 eq.4); 0 if either vector is zero.
+
+    Arguments:
+        h1: the first vector (or hash).
+        h2: the second.
+
+    Returns:
+        ρ in [0, 1]."""
     a = np.asarray(h1, np.float64).ravel()
     b = np.asarray(h2, np.float64).ravel()
     if a.shape != b.shape:
@@ -64,6 +71,12 @@ def cosine_similarity(h1, h2) -> float:
 
 
 def scaled_vector(h: MeshHash) -> np.ndarray:
-    """μ / max μ from log μ: the same direction as h, never overflowing."""
+    """μ / max μ from log μ: the same direction as h, never overflowing.
+
+    Arguments:
+        h: a thesis hash.
+
+    Returns:
+        μ / max μ, float64."""
     lv = np.asarray(h.log_vector, np.float64)
     return np.exp(lv - lv.max())

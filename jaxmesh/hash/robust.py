@@ -68,7 +68,14 @@ _SHELL_WIDTH = 0.3
 def affine_normalize(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(x, face areas): x = C^{-1/2}(v − c) with the surface's area-weighted centroid c
     and covariance C (module docstring, step 2).  Raises ``ValueError`` for a surface
-    without area; a planar surface keeps zero spread across its plane."""
+    without area; a planar surface keeps zero spread across its plane.
+
+    Arguments:
+        vertices: positions, (V, 3).
+        faces: triangles, (F, 3).
+
+    Returns:
+        (x (V, 3), face areas (F,))."""
     v = np.asarray(vertices, np.float64)
     f = np.asarray(faces, np.int64)
     a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
@@ -145,7 +152,15 @@ def robust_hash(mesh: Mesh, *, samples: int = 40000, degree: int = 6, shells: in
 
 
 def robust_similarity(h1, h2, half_distance: float = HALF_DISTANCE) -> float:
-    """ρ = 2^{−‖h₁ − h₂‖ / d½} ∈ (0, 1] (module docstring)."""
+    """ρ = 2^{−‖h₁ − h₂‖ / d½} ∈ (0, 1] (module docstring).
+
+    Arguments:
+        h1: the first robust hash (or its vector).
+        h2: the second.
+        half_distance: the distance d½ at which ρ = ½.
+
+    Returns:
+        ρ in (0, 1]."""
     a = np.asarray(h1, np.float64).ravel()
     b = np.asarray(h2, np.float64).ravel()
     if a.shape != b.shape:

@@ -50,7 +50,12 @@ def euclidean_mst(points) -> tuple[np.ndarray, np.ndarray]:
     Returns ``(edges (n-1, 2), lengths (n-1,))``.  Exact: the MST of the Delaunay
     graph (which contains the Euclidean MST); coincident points are merged first
     (joined by zero-length edges) and degenerate sets use the complete graph.
-    """
+
+    Arguments:
+        points: the point set, (n, 3).
+
+    Returns:
+        (edges (n−1, 2), lengths (n−1,))."""
     p = np.asarray(points, np.float64)
     if p.ndim != 2 or p.shape[1] != 3:
         raise ValueError(f"points must have shape (n, 3), got {p.shape}")
@@ -79,13 +84,26 @@ def euclidean_mst(points) -> tuple[np.ndarray, np.ndarray]:
 
 
 def euclidean_mst_length(points) -> float:
-    """L*: total length of the Euclidean minimal spanning tree of ``points``."""
+    """L*: total length of the Euclidean minimal spanning tree of ``points``.
+
+    Arguments:
+        points: the point set, (n, 3).
+
+    Returns:
+        L*, a float."""
     return float(euclidean_mst(points)[1].sum())
 
 
 def graph_mst_length(points, edges) -> float:
     """Total length of the minimal spanning forest of the graph with ``edges`` (k, 2)
-    weighted by Euclidean length (the mesh-edge MST, when ``edges`` are mesh edges)."""
+    weighted by Euclidean length (the mesh-edge MST, when ``edges`` are mesh edges).
+
+    Arguments:
+        points: the positions, (n, 3).
+        edges: the graph's edges, (k, 2).
+
+    Returns:
+        The forest's total length."""
     p = np.asarray(points, np.float64)
     e = np.asarray(edges, np.int64).reshape(-1, 2)
     if len(e) == 0:
@@ -94,7 +112,14 @@ def graph_mst_length(points, edges) -> float:
 
 
 def tsallis_entropy(mst_length: float, n: int) -> float:
-    """ξ = 2 (L* / √n − 1), the thesis's α = 1/2 Tsallis entropy estimate."""
+    """ξ = 2 (L* / √n − 1), the thesis's α = 1/2 Tsallis entropy estimate.
+
+    Arguments:
+        mst_length: L*.
+        n: the number of points.
+
+    Returns:
+        ξ, a float."""
     if n < 1:
         raise ValueError("the entropy of an empty point set is undefined")
     return 2.0 * (mst_length / np.sqrt(n) - 1.0)

@@ -26,7 +26,14 @@ __all__ = ["cotangent_parts", "laplace_beltrami_host", "symmetric_laplace_beltra
 def cotangent_parts(vertices: np.ndarray, faces: np.ndarray) -> tuple[sp.csr_matrix, np.ndarray]:
     """(L_c, η): L_c = D_c − W_c with (W_c)_ij = cot α_ij + cot β_ij, and η_i the total
     area of the faces around v_i.  Host numpy; the cotangents are
-    :func:`jaxmesh.geometry.cotangents_of_corners` (a degenerate corner adds nothing)."""
+    :func:`jaxmesh.geometry.cotangents_of_corners` (a degenerate corner adds nothing).
+
+    Arguments:
+        vertices: positions, (V, 3).
+        faces: triangles, (F, 3).
+
+    Returns:
+        (L_c (V, V) CSR, η (V,))."""
     v = np.asarray(vertices, np.float64)
     f = np.asarray(faces, np.int64)
     n = len(v)
@@ -47,14 +54,28 @@ def cotangent_parts(vertices: np.ndarray, faces: np.ndarray) -> tuple[sp.csr_mat
 
 def laplace_beltrami_host(vertices: np.ndarray, faces: np.ndarray) -> sp.csr_matrix:
     """The thesis's L = D − W = diag(3/η) L_c (rows with η_i = 0 are zero); equals
-    :func:`jaxmesh.sparse.laplace_beltrami_matrix` without building a :class:`Mesh`."""
+    :func:`jaxmesh.sparse.laplace_beltrami_matrix` without building a :class:`Mesh`.
+
+    Arguments:
+        vertices: positions, (V, 3).
+        faces: triangles, (F, 3).
+
+    Returns:
+        L, (V, V) CSR."""
     lc, eta = cotangent_parts(vertices, faces)
     scale = np.divide(3.0, eta, out=np.zeros_like(eta), where=eta > 0)
     return (sp.diags(scale) @ lc).tocsr()
 
 
 def symmetric_laplace_beltrami(vertices: np.ndarray, faces: np.ndarray) -> sp.csr_matrix:
-    """S = diag(√(3/η)) L_c diag(√(3/η)) (module docstring), over the vertices with η_i > 0."""
+    """S = diag(√(3/η)) L_c diag(√(3/η)) (module docstring), over the vertices with η_i > 0.
+
+    Arguments:
+        vertices: positions, (V, 3).
+        faces: triangles, (F, 3).
+
+    Returns:
+        S, CSR over the vertices with η > 0."""
     lc, eta = cotangent_parts(vertices, faces)
     keep = eta > 0
     q = sp.diags(np.sqrt(3.0 / eta[keep]))
@@ -68,7 +89,15 @@ def laplace_beltrami_eigenvalues(vertices: np.ndarray, faces: np.ndarray, r: int
     Dense ``scipy.linalg.eigh`` (only the wanted index range) for small matrices
     or large ``r``; otherwise ARPACK's ``eigsh`` (largest algebraic, fixed seeded
     start vector, so the result is reproducible).  ``r`` is clipped to the size.
-    """
+
+    Arguments:
+        vertices: positions, (V, 3).
+        faces: triangles, (F, 3).
+        r: how many eigenvalues.
+        dense_max: matrices up to this size use a dense symmetric eigensolver, larger ones ARPACK.
+
+    Returns:
+        (min(r, V),) eigenvalues, descending."""
     s = symmetric_laplace_beltrami(vertices, faces)
     n = s.shape[0]
     r = int(min(r, n))

@@ -61,7 +61,16 @@ def mesh_hash(mesh: Mesh, parts: int = 8, r: int | float = 16, *, mst: str = "eu
     number; the default 16 keeps hashing fast, ``r=0.1`` is the 10 % reading and
     costs a dense eigensolve per part); ``mst`` is ``"euclidean"`` or ``"edges"``;
     ``seed`` is METIS's seed.  Deterministic.
-    """
+
+    Arguments:
+        mesh: a single mesh.
+        parts: the number s of sub-meshes.
+        r: eigenvalues per part: an int, or a fraction of the part's size.
+        mst: ``"euclidean"`` (the Euclidean MST of the vertices) or ``"edges"`` (of the mesh edges).
+        seed: METIS's seed.
+
+    Returns:
+        A :class:`MeshHash`."""
     if mesh.batch_shape:
         raise ValueError(f"mesh_hash needs a single mesh, got batch shape {mesh.batch_shape}")
     if mst not in ("euclidean", "edges"):

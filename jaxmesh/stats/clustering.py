@@ -50,7 +50,13 @@ def _forward_triangles(u, v, out, n: int):
 
 
 def triangle_counts(mesh: MeshOrView) -> np.ndarray:
-    """t_v: number of graph triangles through each vertex (exact), shape (V,)."""
+    """t_v: number of graph triangles through each vertex (exact), shape (V,).
+
+    Arguments:
+        mesh: a single mesh (or its graph view).
+
+    Returns:
+        t_v, (V,) integers."""
     _, deg = edges_and_degree(mesh)
     n = mesh.num_vertices
     src, dst = np.asarray(mesh.src, np.int32), np.asarray(mesh.dst, np.int32)  # grouped by src
@@ -68,7 +74,13 @@ def triangle_counts(mesh: MeshOrView) -> np.ndarray:
 
 
 def clustering(mesh: MeshOrView) -> np.ndarray:
-    """C(v) = 2 t_v / (d_v (d_v - 1)), 0 where d_v < 2 (the networkx convention)."""
+    """C(v) = 2 t_v / (d_v (d_v - 1)), 0 where d_v < 2 (the networkx convention).
+
+    Arguments:
+        mesh: a single mesh (or its graph view).
+
+    Returns:
+        C(v), (V,)."""
     _, d = edges_and_degree(mesh)
     t = triangle_counts(mesh)
     den = d * (d - 1)
@@ -76,13 +88,26 @@ def clustering(mesh: MeshOrView) -> np.ndarray:
 
 
 def thesis_clustering(mesh: MeshOrView) -> np.ndarray:
-    """C(v) = 2 / (d_v - 1) (thesis ch.5 eq.6); NaN where d_v <= 1."""
+    """C(v) = 2 / (d_v - 1) (thesis ch.5 eq.6); NaN where d_v <= 1.
+
+    Arguments:
+        mesh: a single mesh (or its graph view).
+
+    Returns:
+        C(v), (V,), NaN where d_v ≤ 1."""
     _, d = edges_and_degree(mesh)
     return np.where(d > 1, 2 / np.where(d > 1, d - 1, 1), np.nan)
 
 
 def clustering_by_degree(mesh: MeshOrView, values: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """(k, C(k)): mean clustering over the vertices of each degree k present (eq.7)."""
+    """(k, C(k)): mean clustering over the vertices of each degree k present (eq.7).
+
+    Arguments:
+        mesh: a single mesh (or its graph view).
+        values: per-vertex clustering (default: :func:`clustering`).
+
+    Returns:
+        (degrees k, mean C(k))."""
     _, d = edges_and_degree(mesh)
     c = clustering(mesh) if values is None else np.asarray(values)
     ks = np.unique(d)

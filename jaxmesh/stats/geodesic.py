@@ -32,7 +32,15 @@ __all__ = ["sample_sources", "graph_distances", "heat_geodesics", "geodesic_dist
 
 def sample_sources(mesh: MeshOrView, count: int, seed: int = 0) -> np.ndarray:
     """``count`` distinct vertex indices drawn uniformly with a seeded generator
-    (all vertices, in order, if ``count`` >= V)."""
+    (all vertices, in order, if ``count`` >= V).
+
+    Arguments:
+        mesh: a single mesh (or its graph view).
+        count: how many sources.
+        seed: the generator's seed.
+
+    Returns:
+        Vertex indices, (min(count, V),)."""
     n = mesh.num_vertices
     if count >= n:
         return np.arange(n)
@@ -58,7 +66,16 @@ def _graph(mesh: MeshOrView, graph: str, k: int) -> sp.csr_matrix:
 
 def graph_distances(mesh: MeshOrView, sources, graph: str = "edges", k: int = 8) -> np.ndarray:
     """Shortest-path lengths (S, V) from ``sources`` on the edge graph or the
-    kNN graph (``k`` ≥ 1 neighbours, at most V − 1); inf where unreachable."""
+    kNN graph (``k`` ≥ 1 neighbours, at most V − 1); inf where unreachable.
+
+    Arguments:
+        mesh: a single mesh (or its graph view).
+        sources: source vertex indices, (S,) integers.
+        graph: ``"edges"`` or ``"knn"``.
+        k: neighbours per vertex of the kNN graph (1 ≤ k ≤ V − 1).
+
+    Returns:
+        Distances, (S, V), inf where unreachable."""
     single(mesh)
     return csgraph.dijkstra(_graph(mesh, graph, k), directed=False, indices=np.asarray(sources))
 
@@ -81,7 +98,16 @@ def heat_geodesics(mesh: MeshOrView, sources, t: float | None = None, block: int
     """Heat-method distances (S, V) from ``sources`` (module docstring); ``t``
     defaults to ℓ̄².  Vertices unreachable from a source (another component)
     get inf.  Sources are processed ``block`` at a time (the per-face gradients
-    of a block are F × 3 × block numbers)."""
+    of a block are F × 3 × block numbers).
+
+    Arguments:
+        mesh: a single mesh (or its graph view).
+        sources: source vertex indices, (S,) integers.
+        t: the diffusion time (default ℓ̄²).
+        block: sources solved at once.
+
+    Returns:
+        Distances, (S, V), inf where unreachable."""
     single(mesh)
     sources = np.atleast_1d(np.asarray(sources))
     v, f = np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces)
@@ -125,7 +151,16 @@ def _heat_distances(heat, poisson, f, area, grad, sources) -> np.ndarray:
 
 
 def geodesic_distances(mesh: MeshOrView, sources, method: str = "heat", k: int = 8) -> np.ndarray:
-    """Distances (S, V) by ``method``: "heat", "edges" or "knn"."""
+    """Distances (S, V) by ``method``: "heat", "edges" or "knn".
+
+    Arguments:
+        mesh: a single mesh (or its graph view).
+        sources: source vertex indices, (S,) integers.
+        method: ``"heat"``, ``"edges"`` or ``"knn"``.
+        k: neighbours per vertex of the kNN graph (1 ≤ k ≤ V − 1).
+
+    Returns:
+        Distances, (S, V)."""
     if method == "heat":
         return heat_geodesics(mesh, sources)
     return graph_distances(mesh, sources, method, k)

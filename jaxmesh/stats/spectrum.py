@@ -22,7 +22,15 @@ def laplacian_spectrum(mesh: Mesh, kind: str = "combinatorial", k: int | None = 
     spectrum from a dense symmetric solver; otherwise the ``k`` smallest and
     ``k`` largest eigenvalues (default k = 20) from ``eigsh`` (shift-invert
     just below 0 for the small end), placed at their true ranks i / (V - 1).
-    """
+
+    Arguments:
+        mesh: a single mesh (or its graph view).
+        kind: ``"combinatorial"`` (L = D − A) or ``"normalized"``.
+        k: eigenvalues from each end for large meshes (default 20; forces the sparse path).
+        dense_max: matrices up to this size use a dense symmetric eigensolver, larger ones ARPACK.
+
+    Returns:
+        (normalised ranks r, eigenvalues), both ascending."""
     single(mesh)
     if kind == "combinatorial":
         mat = jsparse.laplacian_matrix(mesh)

@@ -86,7 +86,17 @@ def mesh_statistics(mesh: Mesh, sources: int = 200, seed: int = 0, knn: int = 8,
 
 
 def plot_statistics(mesh: Mesh, stats: dict, title: str = "", path=None, up: str = "y"):
-    """The six-panel figure; saved to ``path`` when given.  Returns the figure."""
+    """The six-panel figure; saved to ``path`` when given.  Returns the figure.
+
+    Arguments:
+        mesh: a single mesh (or its graph view).
+        stats: the dict of :func:`mesh_statistics`.
+        title: the figure title.
+        path: an image file to save to (None: not saved).
+        up: the model's up axis, ``"y"`` (default) or ``"z"``.
+
+    Returns:
+        The matplotlib figure."""
     import matplotlib.pyplot as plt
 
     from ..render import render

@@ -97,7 +97,14 @@ def _grid(method: str, **axes) -> list[Candidate]:
 
 
 def taubin_mu(lam: float, pass_band: float) -> float:
-    """μ with pass-band frequency k_PB = 1/λ + 1/μ (Taubin 1995): μ = λ / (k_PB λ − 1)."""
+    """μ with pass-band frequency k_PB = 1/λ + 1/μ (Taubin 1995): μ = λ / (k_PB λ − 1).
+
+    Arguments:
+        lam: λ > 0.
+        pass_band: k_PB ≥ 0.
+
+    Returns:
+        μ < −λ."""
     return lam / (pass_band * lam - 1)
 
 
@@ -109,7 +116,16 @@ CANDIDATES: tuple[Candidate, ...] = tuple(
 
 
 def edge_tilt(mesh: Mesh, nu: Float[Array, "F 3"], ell, u: Float[Array, "*batch V 3"]) -> Float[Array, "*batch F 3"]:
-    """(A u)_{f,e} = ν_f · (u_b − u_c) / ℓ̄ for the edges (b, c) opposite each corner (module docstring)."""
+    """(A u)_{f,e} = ν_f · (u_b − u_c) / ℓ̄ for the edges (b, c) opposite each corner (module docstring).
+
+    Arguments:
+        mesh: a single mesh.
+        nu: unit face normals, (F, 3).
+        ell: the mean edge length ℓ̄.
+        u: a displacement field, (*batch, V, 3).
+
+    Returns:
+        (*batch, F, 3)."""
     h = jnp.sum(u[..., mesh.faces, :] * lift(nu[:, None, :], u.ndim + 1), axis=-1)       # (*b, F, 3)
     return (h[..., [1, 2, 0]] - h[..., [2, 0, 1]]) / ell
 

@@ -112,7 +112,19 @@ def tune_batch(noisy, clean=None, method="kernel", *, iterations: int | None = N
     is None, the list of denoised meshes).  Each element equals :func:`tune` on
     that mesh alone (tested).  One iteration count (tune the count per mesh
     with :func:`tune`).  ``method``, ``options`` and keywords as :func:`tune`.
-    """
+
+    Arguments:
+        noisy: a list of meshes, a :class:`~jaxmesh.batch.PaddedBatch`, or one mesh with vertices (B, V, 3).
+        clean: the references in the same form, or None (blind).
+        method: a registry name from :data:`~jaxmesh.denoise.METHODS` or a :class:`~jaxmesh.denoise.Method`.
+        iterations: the method's iteration count (default: the registry's).
+        sigma: blind only: σ per mesh, (B,) (default: estimated per mesh).
+        key: the probes' random key (an int or a ``jax.random`` key).
+        options: the search's :class:`~jaxmesh.tune.TuneOptions` (default: its defaults).
+        **keywords: the method's other parameters, fixed.
+
+    Returns:
+        (a :class:`TuneResult` with a leading B axis, the denoised meshes)."""
     if iterations is not None and not isinstance(iterations, int):
         raise ValueError("tune_batch takes one iteration count")
     stacked, shared, unpack, b = _as_batch(noisy)
@@ -157,7 +169,20 @@ def tune_shared(noisy, clean=None, method="kernel", *, iterations: int | None = 
     the meshes of each one's relative loss (each in its own unit-diagonal
     frame, so meshes of any units count equally).  Use the result on unseen
     meshes with :meth:`TuneResult.apply`.  Arguments as :func:`tune_batch`;
-    the result's ``error`` is the mean relative loss and ``mesh`` is None."""
+    the result's ``error`` is the mean relative loss and ``mesh`` is None.
+
+    Arguments:
+        noisy: a list of meshes, a :class:`~jaxmesh.batch.PaddedBatch`, or one mesh with vertices (B, V, 3).
+        clean: the references in the same form, or None (blind).
+        method: a registry name from :data:`~jaxmesh.denoise.METHODS` or a :class:`~jaxmesh.denoise.Method`.
+        iterations: the method's iteration count (default: the registry's).
+        sigma: blind only: σ per mesh, (B,) (default: estimated per mesh).
+        key: the probes' random key (an int or a ``jax.random`` key).
+        options: the search's :class:`~jaxmesh.tune.TuneOptions` (default: its defaults).
+        **keywords: the method's other parameters, fixed.
+
+    Returns:
+        A :class:`TuneResult` (``error``: the mean relative loss; ``mesh``: None)."""
     if iterations is not None and not isinstance(iterations, int):
         raise ValueError("tune_shared takes one iteration count")
     noisy = list(noisy)

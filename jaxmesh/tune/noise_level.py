@@ -84,7 +84,13 @@ _MAD_TO_SIGMA = 1.482602218505602  # 1 / Φ⁻¹(3/4)
 
 
 def umbrella_square_row_norms(mesh: Mesh) -> np.ndarray:
-    """‖row_i(K²)‖ for every vertex (host, scipy; 0 for isolated vertices)."""
+    """‖row_i(K²)‖ for every vertex (host, scipy; 0 for isolated vertices).
+
+    Arguments:
+        mesh: a single mesh.
+
+    Returns:
+        (V,) float64."""
     from ..sparse import umbrella_matrix
 
     k = umbrella_matrix(mesh)
@@ -175,7 +181,14 @@ def _one_ring_sum(mesh: Mesh, values: np.ndarray) -> np.ndarray:
 def estimate_noise(mesh: Mesh, method: str = "min") -> float:
     """σ̂ of the module docstring, in the mesh's units (equivariant: scaling the
     mesh by s scales σ̂ by s; translation and rotation leave it unchanged).
-    ``method``: "min" (default), "flat", "umbrella" or "quadric"."""
+    ``method``: "min" (default), "flat", "umbrella" or "quadric".
+
+    Arguments:
+        mesh: a single mesh.
+        method: ``"min"``, ``"flat"``, ``"umbrella"`` or ``"quadric"``.
+
+    Returns:
+        σ̂, in the mesh's units."""
     if mesh.batch_shape:
         raise ValueError("estimate_noise takes one mesh; loop over a batch")
     if method not in NOISE_ESTIMATORS:
@@ -202,7 +215,14 @@ def _mad_sigma(r: np.ndarray) -> float:
 def noise_sigma(mesh: Mesh, sigma=None) -> tuple[float, bool]:
     """(σ, estimated) for blind tuning: ``sigma`` checked (finite, > 0) or, when
     None, :func:`estimate_noise`, refused when it is not positive (a mesh too
-    small, or too exactly smooth, for the estimator: give σ instead)."""
+    small, or too exactly smooth, for the estimator: give σ instead).
+
+    Arguments:
+        mesh: a single mesh.
+        sigma: a given σ, or None to estimate.
+
+    Returns:
+        (σ, estimated)."""
     if sigma is not None:
         s = float(np.asarray(sigma))
         if not (np.isfinite(s) and s > 0):
@@ -220,7 +240,16 @@ def blind_caveats(mesh: Mesh, sigma: float, estimated: bool, relative_risk: floa
     """What a blind result cannot vouch for: ``relative_risk`` (estimated error of
     the output over the input's, ≥ 1 means no improvement is estimated) and an
     estimated σ in the range where the estimator is unreliable.  Each caveat is
-    also issued as a :class:`BlindTuningWarning`."""
+    also issued as a :class:`BlindTuningWarning`.
+
+    Arguments:
+        mesh: a single mesh.
+        sigma: the σ used.
+        estimated: whether σ was estimated.
+        relative_risk: the estimated error ratio output/input.
+
+    Returns:
+        The caveats, as sentences."""
     out = []
     if not relative_risk < 1:
         out.append(f"the result is not estimated to improve on the input (estimated error {relative_risk:.3g}x "

@@ -53,13 +53,30 @@ def _error(objective: str, clean: Mesh, estimate) -> Array:
 
 def relative_error(objective: str, clean: Mesh, noisy: Mesh, estimate) -> Array:
     """error(clean, estimate) / error(clean, noisy): 1 means no better than the
-    input.  Dimensionless, so the same number for any units of the mesh."""
+    input.  Dimensionless, so the same number for any units of the mesh.
+
+    Arguments:
+        objective: ``"visual"``, ``"nonlinear"`` or ``"normal"`` (:data:`OBJECTIVES`).
+        clean: the reference.
+        noisy: the input.
+        estimate: the denoised mesh or its vertices (*batch, V, 3).
+
+    Returns:
+        The ratio, (*batch)."""
     return safe_divide(_error(objective, clean, estimate), _error(objective, clean, noisy))
 
 
 def rademacher_probes(key, mesh: Mesh, count: int) -> Float[Array, "P V 3"]:
     """``count`` Rademacher (±1) fields on the vertices, 0 on isolated vertices
-    (padding included: they carry no noise and are never moved)."""
+    (padding included: they carry no noise and are never moved).
+
+    Arguments:
+        key: the probes' random key (an int or a ``jax.random`` key).
+        mesh: a single mesh.
+        count: the number of probes P.
+
+    Returns:
+        (P, V, 3) of ±1 (0 on isolated vertices)."""
     z = jax.random.rademacher(key, (count, mesh.num_vertices, 3), dtype=mesh.dtype)
     return jnp.where((mesh.degree > 0)[:, None], z, 0)
 
@@ -71,7 +88,14 @@ def _trace_m(mesh: Mesh, dtype) -> Array:
 
 
 def noisy_visual_error_expectation(mesh: Mesh, sigma) -> Array:
-    """E[E(y, x)] = σ² tr(M) / 2m: the expected visual error of the noisy input."""
+    """E[E(y, x)] = σ² tr(M) / 2m: the expected visual error of the noisy input.
+
+    Arguments:
+        mesh: a single mesh.
+        sigma: the noise σ per coordinate.
+
+    Returns:
+        The expectation (a scalar, or (*batch) for batched σ)."""
     return jnp.asarray(sigma, mesh.dtype) ** 2 * _trace_m(mesh, mesh.dtype) / (2 * mesh.num_vertices)
 
 
@@ -80,7 +104,16 @@ def sure_visual_error(
 ) -> Array:
     """SURE of the visual error of ``denoiser(y)`` (module docstring), y the
     noisy positions (*batch, V, 3); ``sigma`` the noise standard deviation per
-    coordinate, in the mesh's units.  Returns shape (*batch,)."""
+    coordinate, in the mesh's units.  Returns shape (*batch,).
+
+    Arguments:
+        noisy: the noisy mesh (single, or with batched vertices).
+        denoiser: maps positions (*batch, V, 3) to positions.
+        sigma: the noise σ per coordinate.
+        probes: Rademacher fields, (P, V, 3) (:func:`rademacher_probes`).
+
+    Returns:
+        The estimate, (*batch)."""
     y = noisy.vertices
     fy, lin = jax.linearize(denoiser, y)
     r = fy - y

@@ -35,7 +35,15 @@ class DenoiseRun:
 
 def split_auto(method: "str | Method", given: dict, tune_all: bool = False) -> tuple[dict, list[str]]:
     """(fixed values, names to tune) from ``given``, where :data:`AUTO` marks a
-    continuous parameter to tune; ``tune_all`` adds every continuous one not given."""
+    continuous parameter to tune; ``tune_all`` adds every continuous one not given.
+
+    Arguments:
+        method: a registry name from :data:`~jaxmesh.denoise.METHODS` or a :class:`~jaxmesh.denoise.Method`.
+        given: parameter values, :data:`AUTO` for those to tune.
+        tune_all: add every continuous parameter not given.
+
+    Returns:
+        (fixed values, names to tune)."""
     m = as_method(method)
     method = m.name
     names = [k for k, v in given.items() if v == AUTO]
@@ -56,7 +64,19 @@ def denoise_with_tuning(mesh: Mesh, method: "str | Method", given: dict | None =
     """Denoise ``mesh`` with ``method``: parameters in ``given`` fixed, those given as
     :data:`AUTO` (or all continuous ones with ``tune_all``) tuned — against
     ``reference`` if given, else blind (noise ``sigma`` or estimated).  Runs in
-    the unit frame (``unit_frame=False``: in the mesh's units, no tuning)."""
+    the unit frame (``unit_frame=False``: in the mesh's units, no tuning).
+
+    Arguments:
+        mesh: a single mesh.
+        method: a registry name from :data:`~jaxmesh.denoise.METHODS` or a :class:`~jaxmesh.denoise.Method`.
+        given: parameter values; :data:`AUTO` marks one to tune.
+        tune_all: also tune every continuous parameter not given.
+        reference: a clean mesh to tune against (None: blind).
+        sigma: blind: the noise σ (None: estimated).
+        unit_frame: run in the unit frame (False: in the mesh's units, no tuning).
+
+    Returns:
+        A :class:`DenoiseRun` (the mesh, the method, every parameter as used, the names tuned, the tuner's result)."""
     m = as_method(method)
     fixed, names = split_auto(m, dict(given or {}), tune_all)
     if names and not unit_frame:

@@ -15,14 +15,29 @@ __all__ = ["search", "grid_axis", "parabola_start"]
 
 def grid_axis(n: int, dtype):
     """The search grid of one coordinate: n cell midpoints t_k = (k + ½)/n in (0, 1)
-    and their logits u_k = log t_k − log(1 − t_k) (the unbounded coordinate)."""
+    and their logits u_k = log t_k − log(1 − t_k) (the unbounded coordinate).
+
+    Arguments:
+        n: the grid size.
+        dtype: the float dtype.
+
+    Returns:
+        (t (n,), u (n,))."""
     t = (jnp.arange(n, dtype=dtype) + 0.5) / n
     return t, jnp.log(t) - jnp.log1p(-t)
 
 
 def parabola_start(values, t, p: int):
     """Per-coordinate parabola through the best grid point and its neighbours:
-    (u₀ (p,), curvature h in u (p,)).  values has shape (n,)*p."""
+    (u₀ (p,), curvature h in u (p,)).  values has shape (n,)*p.
+
+    Arguments:
+        values: the grid losses, (n,)*p.
+        t: the grid midpoints, (n,).
+        p: the number of coordinates.
+
+    Returns:
+        (u₀ (p,), curvature h (p,))."""
     n = t.shape[0]
     best = jnp.unravel_index(jnp.argmin(values), values.shape)
     u0, curv = [], []
@@ -52,7 +67,16 @@ _GRID_BATCH_VERTICES = 150_000
 
 
 def search(loss, cfg, dtype, num_vertices: int):
-    """Steps 2–4 of the module docstring.  Returns a dict of arrays."""
+    """Steps 2–4 of the module docstring.  Returns a dict of arrays.
+
+    Arguments:
+        loss: maps (g, p) coordinates to (g,) relative losses.
+        cfg: the search configuration (``coords``, ``grid``, ``max_steps``, ``rtol``, ``atol``).
+        dtype: the float dtype.
+        num_vertices: V, which sizes the grid's batches.
+
+    Returns:
+        A dict: ``u``, ``converged``, ``steps``, the grid and the history."""
     p, n = len(cfg.coords), cfg.grid
     t, u_axis = grid_axis(n, dtype)
     mesh_u = jnp.stack(jnp.meshgrid(*([u_axis] * p), indexing="ij"), axis=-1).reshape(-1, p)

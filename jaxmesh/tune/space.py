@@ -57,7 +57,15 @@ class Coordinate:
 def search_space(method, names=None, bounds: dict | None = None) -> tuple[Coordinate, ...]:
     """The coordinates of ``method``'s (a registry name or a
     :class:`~jaxmesh.denoise.Method`) continuous parameters ``names`` (default: all
-    of them), with the registry's ranges unless ``bounds`` gives ``{name: (lo, hi)}``."""
+    of them), with the registry's ranges unless ``bounds`` gives ``{name: (lo, hi)}``.
+
+    Arguments:
+        method: a registry name from :data:`~jaxmesh.denoise.METHODS` or a :class:`~jaxmesh.denoise.Method`.
+        names: the parameters to tune (default: all continuous ones).
+        bounds: ``{name: (lo, hi)}`` replacing the registry's ranges.
+
+    Returns:
+        One :class:`Coordinate` per name."""
     m = as_method(method)
     method = m.name
     names = m.continuous if names is None else tuple(names)

@@ -326,6 +326,15 @@ def tune(noisy: Mesh, clean: Mesh | None = None, method: "str | Method" = "kerne
 def tune_lambda(noisy: Mesh, clean: Mesh | None = None, method: "str | Method" = "kernel",
                 **keywords) -> TuneResult:
     """:func:`tune` of the kernel flow's λ alone (the thesis's one parameter);
-    for another method, of its first continuous parameter."""
+    for another method, of its first continuous parameter.
+
+    Arguments:
+        noisy: the noisy mesh.
+        clean: the clean reference (None: blind).
+        method: a registry name from :data:`~jaxmesh.denoise.METHODS` or a :class:`~jaxmesh.denoise.Method`.
+        **keywords: as :func:`tune`.
+
+    Returns:
+        A :class:`TuneResult`."""
     m = as_method(method)
     return tune(noisy, clean, m, names=keywords.pop("names", m.continuous[:1]), **keywords)
