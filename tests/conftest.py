@@ -1,27 +1,36 @@
-"""Shared fixtures: small hand-checkable meshes, the shared real meshes (skipped
-when ../shared/meshes is absent), x64, strict dtype promotion, and rank promotion that raises."""
+"""Shared fixtures and helpers: small hand-checkable meshes, the shared real meshes
+(skipped when ../shared/meshes is absent), plain-loop references used by several
+files, the CLI tests' inputs (tests/cli), x64, strict dtype promotion, and rank
+promotion that raises."""
 
 from __future__ import annotations
 
 import gc
 import inspect
+import json
 import os
+import re
 from pathlib import Path
 
-# The default run is mostly XLA compiles of small programs that then run once: with
-# XLA's backend optimisation off they compile about a quarter faster (the results agree
-# within every test's tolerance).  JAXMESH_TEST_XLA_OPTIMIZE=1 keeps XLA's defaults, the
-# code users run: .ci/run's slow pass sets it.  Set before JAX starts its backend, and
-# inherited by the subprocesses the tests start.
+# The default run is mostly XLA compiles of small programs that then run once (in
+# tests/test_tune.py and tests/test_denoise_methods.py, 84 of 130 s were XLA compiles).
+# With XLA's backend optimisation off they compile about a quarter faster, and with the
+# older elemental fusion emitters instead of the MLIR ones about half as long again (the
+# tuner's program on spot: 1.35 s -> 0.67 s, the same loss to the last digit); the
+# results agree within every test's tolerance.  JAXMESH_TEST_XLA_OPTIMIZE=1 keeps XLA's
+# defaults, the code users run: .ci/run's slow pass sets it.  Set before JAX starts its
+# backend, and inherited by the subprocesses the tests start.
 if os.environ.get("JAXMESH_TEST_XLA_OPTIMIZE") != "1":
     os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + " --xla_backend_optimization_level=0"
-                               " --xla_llvm_disable_expensive_passes=true").strip()
+                               " --xla_llvm_disable_expensive_passes=true"
+                               " --xla_cpu_use_fusion_emitters=false").strip()
 
 os.environ["JAX_NUMPY_RANK_PROMOTION"] = "raise"
 
 import jax  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
+import trimesh  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)
 jax.config.update("jax_numpy_dtype_promotion", "strict")
@@ -147,3 +156,70 @@ def bumpy_grid():
 @pytest.fixture(scope="session")
 def spot():
     return jaxmesh.data.load_sample("spot", dtype=np.float64)
+
+
+def torus_arrays(n: int = 8, m: int = 6, big: float = 2.0, small: float = 0.7):
+    """A genus-1 torus, n x m quads split in two."""
+    u, w = np.meshgrid(np.arange(n) * 2 * np.pi / n, np.arange(m) * 2 * np.pi / m, indexing="ij")
+    v = np.stack([(big + small * np.cos(w)) * np.cos(u), (big + small * np.cos(w)) * np.sin(u),
+                  small * np.sin(w)], -1).reshape(-1, 3)
+    idx = lambda i, j: (i % n) * m + (j % m)  # noqa: E731
+    f = []
+    for i in range(n):
+        for j in range(m):
+            a, b, c, d = idx(i, j), idx(i + 1, j), idx(i + 1, j + 1), idx(i, j + 1)
+            f += [[a, b, c], [a, c, d]]
+    return v, np.array(f)
+
+
+def loop_cotangent_matrix(v, f):
+    """Plain-loop assembly of W_ij = cot α_ij + cot β_ij (independent reference)."""
+    m = len(v)
+    w = np.zeros((m, m))
+    for tri in f:
+        for k in range(3):
+            i, j, o = tri[(k + 1) % 3], tri[(k + 2) % 3], tri[k]
+            a, b = v[i] - v[o], v[j] - v[o]
+            cot = np.dot(a, b) / np.linalg.norm(np.cross(a, b))
+            w[i, j] += cot
+            w[j, i] += cot
+    return w
+
+
+def write_dataset(folder, count=7):
+    """``count`` small noisy meshes of three sizes (spheres and subdivided boxes, some
+    with a boundary and isolated vertices) as PLY files in a new ``folder``."""
+    folder.mkdir()
+    rng = np.random.default_rng(1)
+    paths = []
+    for i in range(count):
+        base = trimesh.creation.icosphere(subdivisions=1 + i % 3) if i % 2 else trimesh.creation.box().subdivide()
+        v = base.vertices * (1 + i) + 0.02 * (1 + i) * rng.standard_normal(base.vertices.shape)
+        faces = base.faces[: len(base.faces) - (i % 3)]          # some with a boundary (and isolated vertices)
+        path = folder / f"m{i}.ply"
+        jaxmesh.save(jaxmesh.Mesh.from_arrays(v, faces), str(path))
+        paths.append(path)
+    return paths
+
+
+def viewer_config(page: str) -> dict:
+    """The JSON data a `jaxmesh view` page embeds."""
+    m = re.search(r'<script type="application/json" id="data">(.*?)</script>', page, re.S)
+    return json.loads(m.group(1).replace("<\\/", "</"))
+
+
+@pytest.fixture(scope="session")
+def small_pair(tmp_path_factory):
+    """A noisy icosphere (642 vertices, σ = 0.3 ℓ̄) with one isolated vertex far away
+    (so the boxes of all and of used vertices differ), and its clean original, as
+    files.  The commands' logic does not need the 2.9k-vertex sample; the tests that
+    tune share one compiled tuner through these shapes."""
+    d = tmp_path_factory.mktemp("small")
+    s = trimesh.creation.icosphere(3)
+    clean = jaxmesh.Mesh.from_arrays(np.vstack([s.vertices, [[5.0, 5.0, 5.0]]]), s.faces, warn=False)
+    noisy = jaxmesh.add_noise(clean, 0.3, 7)
+    noisy = noisy.with_vertices(noisy.vertices.at[-1].set(clean.vertices[-1]))
+    paths = str(d / "noisy.ply"), str(d / "clean.ply")
+    jaxmesh.save(noisy, paths[0])
+    jaxmesh.save(clean, paths[1])
+    return paths

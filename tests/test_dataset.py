@@ -1,19 +1,18 @@
-"""The dataset runner (jaxmesh.dataset, ``jaxmesh denoise --out-dir``): buckets
-cover every mesh once, outputs equal per-mesh calls, bad files are reported and
-skipped, an interrupted run resumes without redoing or losing outputs."""
+"""The dataset runner (jaxmesh.dataset): buckets cover every mesh once, outputs equal
+per-mesh calls, an interrupted run resumes without redoing or losing outputs.  Its
+command line (``jaxmesh denoise --out-dir``: bad files reported and skipped, several
+processes) is tested in tests/cli/test_cli_denoise.py."""
 
 from __future__ import annotations
 
-import json
 
 import numpy as np
 import pytest
-import trimesh
 
 import jaxmesh
-from jaxmesh.cli import main
 from jaxmesh.dataset import LADDER_RATIO, denoise_files, expand_inputs, plan_batches, rung
 from jaxmesh.denoise import denoise_in_unit_frame
+from conftest import write_dataset
 
 
 def test_rung_is_the_least_ladder_size_above():
@@ -42,27 +41,13 @@ def test_plan_covers_every_mesh_once_and_buckets_share_a_shape():
         plan_batches(sizes, batch_size=0)
 
 
-def _write_dataset(folder, count=7):
-    folder.mkdir()
-    rng = np.random.default_rng(1)
-    paths = []
-    for i in range(count):
-        base = trimesh.creation.icosphere(subdivisions=1 + i % 3) if i % 2 else trimesh.creation.box().subdivide()
-        v = base.vertices * (1 + i) + 0.02 * (1 + i) * rng.standard_normal(base.vertices.shape)
-        faces = base.faces[: len(base.faces) - (i % 3)]          # some with a boundary (and isolated vertices)
-        path = folder / f"m{i}.ply"
-        jaxmesh.save(jaxmesh.Mesh.from_arrays(v, faces), str(path))
-        paths.append(path)
-    return paths
-
-
 @pytest.mark.filterwarnings("ignore::jaxmesh.mesh.MeshWarning")
 @pytest.mark.parametrize("method,params", [
     ("taubin", {"iterations": 7}),
     pytest.param("kernel", {"lam": 0.02, "iterations": 3}, marks=pytest.mark.slow),
     ("bilateral_normal", {"normal_iterations": 2, "vertex_iterations": 3})])
 def test_outputs_equal_per_mesh_calls(tmp_path, method, params):
-    paths = _write_dataset(tmp_path / "in", 3 if method == "bilateral_normal" else 7)   # compiled per mesh
+    paths = write_dataset(tmp_path / "in", 3 if method == "bilateral_normal" else 7)   # compiled per mesh
     s = denoise_files([str(tmp_path / "in")], tmp_path / "out", method, params, batch_size=2)
     assert (s.done, s.skipped, s.failed) == (len(paths), 0, 0)
     for p in paths:
@@ -75,26 +60,8 @@ def test_outputs_equal_per_mesh_calls(tmp_path, method, params):
 
 
 @pytest.mark.filterwarnings("ignore::jaxmesh.mesh.MeshWarning")
-def test_a_corrupt_file_is_reported_and_skipped_and_the_exit_status_says_so(tmp_path, capsys):
-    paths = _write_dataset(tmp_path / "in", 4)
-    (tmp_path / "in" / "m1b.ply").write_text("ply\nformat ascii 1.0\nelement vertex 9\nend_header\n0 0\n")
-    (tmp_path / "in" / "notes.txt").write_text("not a mesh, not picked up")
-    whole = paths[2].read_bytes()                       # its header is intact, its body cut: fails when read
-    (tmp_path / "in" / "m2b.ply").write_bytes(whole[: len(whole) - 40])
-    report = tmp_path / "r.jsonl"
-    rc = main(["denoise", "--out-dir", str(tmp_path / "out"), str(tmp_path / "in"), "--method", "taubin",
-               "--report", str(report)])
-    out, err = capsys.readouterr()
-    assert rc == 1 and "4 written, 0 skipped (exist), 2 failed" in out
-    assert err.count("jaxmesh: error:") == 2 and "m1b.ply" in err and "m2b.ply" in err
-    lines = [json.loads(line) for line in report.read_text().splitlines()]
-    assert sorted(r["status"] for r in lines) == ["failed"] * 2 + ["ok"] * 4
-    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == sorted(p.name for p in paths)
-
-
-@pytest.mark.filterwarnings("ignore::jaxmesh.mesh.MeshWarning")
 def test_an_interrupted_run_resumes_without_redoing_or_losing_outputs(tmp_path):
-    paths = _write_dataset(tmp_path / "in", 8)
+    paths = write_dataset(tmp_path / "in", 8)
     seen = []
 
     def stop_after_two_batches(done, total):
@@ -125,7 +92,7 @@ def test_inputs_from_files_directories_and_globs(tmp_path):
     assert [p.name for p in got] == ["a.obj", "b.ply"]
 
 
-def test_bad_arguments_are_refused_before_any_work(tmp_path, capsys):
+def test_bad_arguments_are_refused_before_any_work(tmp_path):
     with pytest.raises(ValueError, match="no input meshes"):
         denoise_files([str(tmp_path / "*.ply")], tmp_path / "out")
     with pytest.raises(ValueError, match="chooses its own parameters"):
@@ -135,42 +102,10 @@ def test_bad_arguments_are_refused_before_any_work(tmp_path, capsys):
     with pytest.raises(ValueError, match="ladder ratio"):
         denoise_files([str(tmp_path)], tmp_path / "out", "taubin", ladder=1.0)
     assert not (tmp_path / "out").exists()
-    assert main(["denoise", "--out-dir", str(tmp_path / "o"), str(tmp_path), "--method", "kernel", "--tune"]) == 1
-    assert "not supported with --out-dir" in capsys.readouterr().err
     with pytest.raises(ValueError, match="only continuous parameters"):
         denoise_files([str(tmp_path)], tmp_path / "out", "taubin", {"iterations": "auto"})
     with pytest.raises(ValueError, match="pad_to"):
         jaxmesh.batch.pad_batch([jaxmesh.Mesh.from_arrays(np.eye(3), np.array([[0, 1, 2]]))], (3, 1, 4))
-
-
-@pytest.mark.slow   # three subprocesses, each importing JAX and compiling
-@pytest.mark.filterwarnings("ignore::jaxmesh.mesh.MeshWarning")
-def test_two_processes_with_jax_distributed_equal_one(tmp_path):
-    """Two CLI processes on 127.0.0.1 (jax.distributed, a free coordinator port),
-    each denoising its share: together they write exactly the files one process
-    writes, byte for byte."""
-    import socket
-    import subprocess
-    import sys
-
-    _write_dataset(tmp_path / "in", 6)
-    common = [sys.executable, "-m", "jaxmesh", "denoise", str(tmp_path / "in"), "--method", "taubin",
-              "--iterations", "4", "--batch-size", "2"]
-    assert subprocess.run(common + ["--out-dir", str(tmp_path / "one")], capture_output=True).returncode == 0
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
-    procs = [subprocess.Popen(common + ["--out-dir", str(tmp_path / "two"), "--coordinator", f"127.0.0.1:{port}",
-                                        "--num-processes", "2", "--process-id", str(i)],
-                              stdout=subprocess.PIPE, stderr=subprocess.PIPE) for i in (0, 1)]
-    outs = [p.communicate(timeout=120) for p in procs]
-    assert [p.returncode for p in procs] == [0, 0], [o[1][-500:] for o in outs]
-    written = [int(o[0].split()[0]) for o in outs]
-    assert sorted(written) == [3, 3]                                  # each its share
-    one = sorted(p.name for p in (tmp_path / "one").iterdir())
-    assert sorted(p.name for p in (tmp_path / "two").iterdir()) == one
-    for name in one:
-        assert (tmp_path / "one" / name).read_bytes() == (tmp_path / "two" / name).read_bytes()
 
 
 @pytest.mark.slow   # 60 s: tuning compiles per batch shape, and again per mesh for the reference
@@ -181,7 +116,7 @@ def test_lam_auto_tunes_each_mesh_as_tune_does(tmp_path):
     output and λ equal :func:`jaxmesh.tune.tune` on that mesh alone."""
     from jaxmesh.tune import tune
 
-    paths = _write_dataset(tmp_path / "in", 3)
+    paths = write_dataset(tmp_path / "in", 3)
     s = denoise_files([str(tmp_path / "in")], tmp_path / "out", "kernel", {"lam": "auto", "iterations": 2},
                       batch_size=2)
     assert (s.done, s.failed) == (3, 0)

@@ -10,7 +10,7 @@ import scipy.stats
 import trimesh
 
 import jaxmesh
-from test_operators import loop_cotangent_matrix
+from conftest import loop_cotangent_matrix
 from jaxmesh import sparse
 from jaxmesh.denoise import (
     METHODS,

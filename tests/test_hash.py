@@ -9,7 +9,6 @@ import pytest
 
 import jaxmesh
 from jaxmesh.hash import attacks
-from jaxmesh.cli import main
 from jaxmesh.hash import (THRESHOLDS, cosine_similarity, euclidean_mst, euclidean_mst_length,
                           graph_mst_length, laplace_beltrami_eigenvalues, laplace_beltrami_host,
                           mesh_hash, metis_partition, robust_hash, similarity, submesh,
@@ -329,27 +328,6 @@ def test_attack_registry():
         same = a.num_vertices == m.num_vertices and np.array_equal(np.asarray(a.vertices), np.asarray(m.vertices)) \
             and np.array_equal(np.asarray(a.faces), np.asarray(m.faces))
         assert not same, f"{name} left the mesh unchanged"
-
-
-# ---------------------------------------------------------------- CLI
-
-
-def test_cli_hash_and_compare(capsys, tmp_path, spot, spot_robust):
-    assert main(["hash", "--json", "--sample", "spot"]) == 0
-    out = json.loads(capsys.readouterr().out)
-    assert out["kind"] == "robust" and out["vector"] == [float(x) for x in spot_robust.vector]
-    a, b = tmp_path / "a.ply", tmp_path / "b.ply"
-    jaxmesh.save(spot, a)
-    jaxmesh.save(attacks.rotate(spot, "x", 45), b)
-    assert main(["hash", "--compare", str(a), str(b)]) == 0
-    line = capsys.readouterr().out
-    assert "same model" in line and "threshold rho >= 0.5" in line
-    assert main(["hash", "--compare", str(a), str(b), "--method", "thesis", "--json"]) == 0
-    rec = json.loads(capsys.readouterr().out)
-    assert rec["rho"] == pytest.approx(1.0, abs=1e-9) and rec["same_model"] is True
-    assert main(["hash", "--compare", str(a), str(b), str(a)]) == 1
-    assert "exactly two" in capsys.readouterr().err
-    assert main(["hash", str(tmp_path / "absent.ply")]) == 1
 
 
 def test_host_laplace_beltrami_uses_the_one_degenerate_face_rule():

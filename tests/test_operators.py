@@ -12,7 +12,7 @@ from jax.test_util import check_grads
 import jaxmesh
 from jaxmesh import operators as O
 from jaxmesh import sparse as S
-from conftest import grid_arrays, shared_mesh_path
+from conftest import grid_arrays, loop_cotangent_matrix, shared_mesh_path
 
 
 def test_tetrahedron_hand_values(tetra):
@@ -46,20 +46,6 @@ def test_grid_cotangent_hand_values(grid):
     np.testing.assert_allclose(c[diagonal], 0, atol=1e-15)
     np.testing.assert_allclose(c[~diagonal & on_boundary], 1)
     np.testing.assert_allclose(c[~diagonal & ~on_boundary], 2)
-
-
-def loop_cotangent_matrix(v, f):
-    """Plain-loop assembly of W_ij = cot α_ij + cot β_ij (independent reference)."""
-    m = len(v)
-    w = np.zeros((m, m))
-    for tri in f:
-        for k in range(3):
-            i, j, o = tri[(k + 1) % 3], tri[(k + 2) % 3], tri[k]
-            a, b = v[i] - v[o], v[j] - v[o]
-            cot = np.dot(a, b) / np.linalg.norm(np.cross(a, b))
-            w[i, j] += cot
-            w[j, i] += cot
-    return w
 
 
 def test_cotangent_and_laplace_beltrami_against_plain_loops(bumpy_grid):

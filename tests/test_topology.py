@@ -7,7 +7,7 @@ import pytest
 
 import jaxmesh
 from jaxmesh import topology as T
-from conftest import SHARED_MESHES, grid_arrays
+from conftest import SHARED_MESHES, grid_arrays, torus_arrays
 
 
 def test_hand_cases(tetra, octa, grid, triangle):
@@ -18,18 +18,6 @@ def test_hand_cases(tetra, octa, grid, triangle):
     assert len(T.boundary_edges(grid)) == 14 and T.boundary_loops(grid) == 1
     assert T.genus(grid) == 0 and T.connected_components(grid)[0] == 1
     assert T.is_consistently_oriented(tetra)
-
-
-def torus_arrays(n=6, k=4):
-    idx = lambda i, j: (i % n) * k + (j % k)  # noqa: E731
-    a, b = np.meshgrid(np.linspace(0, 2 * np.pi, n, endpoint=False),
-                       np.linspace(0, 2 * np.pi, k, endpoint=False), indexing="ij")
-    v = np.stack([(2 + np.cos(b)) * np.cos(a), (2 + np.cos(b)) * np.sin(a), np.sin(b)], -1).reshape(-1, 3)
-    f = []
-    for i in range(n):
-        for j in range(k):
-            f += [[idx(i, j), idx(i + 1, j), idx(i + 1, j + 1)], [idx(i, j), idx(i + 1, j + 1), idx(i, j + 1)]]
-    return v, np.array(f)
 
 
 def test_torus_and_two_components(tetra):

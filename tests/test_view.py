@@ -2,9 +2,7 @@
 drawn by a real headless browser (Chromium), screenshot checked panel by panel."""
 
 import base64
-import json
 import os
-import re
 import shutil
 import subprocess
 from pathlib import Path
@@ -12,18 +10,12 @@ from pathlib import Path
 import jax
 import numpy as np
 import pytest
-from conftest import assert_refused, octahedron_arrays, tetrahedron_arrays
+from conftest import assert_refused, octahedron_arrays, tetrahedron_arrays, viewer_config
 
 import jaxmesh
-from jaxmesh.cli import main
 from jaxmesh.view import ramp, vertex_distances, viewer_html, write_viewer
 
 REPO = Path(__file__).resolve().parents[1]
-
-
-def _config(page: str) -> dict:
-    m = re.search(r'<script type="application/json" id="data">(.*?)</script>', page, re.S)
-    return json.loads(m.group(1).replace("<\\/", "</"))
 
 
 def _decode(b64: str, dtype) -> np.ndarray:
@@ -35,7 +27,7 @@ def test_the_page_embeds_the_meshes_in_the_first_meshs_frame():
     b = a.with_vertices(2.0 * a.vertices + 1.0)
     page = viewer_html([("a </script> & <b>", a), ("b", b)], [None, np.arange(6.0)], title="t<1>")
     assert "<title>t&lt;1&gt;</title>" in page and "</script> &" not in page   # labels cannot end the script
-    cfg = _config(page)
+    cfg = viewer_config(page)
     pa, pb = cfg["panels"]
     assert pa["label"] == "a </script> & <b>" and (pa["num_vertices"], pa["num_faces"]) == (6, 8)
     v = np.asarray(a.vertices)
@@ -78,41 +70,7 @@ def test_distances_and_refusals(tmp_path):
     with pytest.raises(FileExistsError):
         write_viewer(out, [("a", a)])
     write_viewer(out, [("a", a), ("m", moved)], overwrite=True)
-    assert len(_config(out.read_text())["panels"]) == 2
-
-
-def test_cli_view_and_view_pages_of_other_commands(tmp_path, capsys):
-    a = jaxmesh.Mesh.from_arrays(*octahedron_arrays())
-    src, ref = tmp_path / "a.ply", tmp_path / "ref.ply"
-    jaxmesh.save(jaxmesh.add_noise(a, 0.1, 0), src)
-    jaxmesh.save(a, ref)
-    page = tmp_path / "v.html"
-    assert main(["view", str(src), str(ref), "-o", str(page), "--color-by", "distance", "--reference", str(ref),
-                 "--shading", "smooth"]) == 0
-    cfg = _config(page.read_text())
-    assert [p["label"] for p in cfg["panels"]] == [str(src), str(ref)] and cfg["shading"] == "smooth"
-    assert cfg["legend"]["label"] == f"distance to {ref}" and cfg["legend"]["high"] > 0
-    assert main(["view", str(src), "-o", str(page)]) == 1
-    assert "exists" in capsys.readouterr().err
-    assert main(["view", str(src), "-o", str(tmp_path / "new.html"), "--reference", str(ref)]) == 1
-    assert "--color-by distance" in capsys.readouterr().err
-    # denoise --view: input, result and reference, the first two coloured by the distance to it
-    out, dpage = tmp_path / "out.ply", tmp_path / "d.html"
-    assert main(["denoise", str(src), str(out), "--method", "taubin", "--iterations", "2", "--reference", str(ref),
-                 "--view", str(dpage)]) == 0
-    cfg = _config(dpage.read_text())
-    assert [("colors" in p) for p in cfg["panels"]] == [True, True, False]
-    assert main(["denoise", str(src), str(tmp_path / "o2.ply"), "--method", "taubin", "--view", str(dpage)]) == 1
-    assert "exists" in capsys.readouterr().err and not (tmp_path / "o2.ply").exists()   # refused before any work
-    # compress --view: the original and the decoded mesh, by vertex error
-    cpage = tmp_path / "c.html"
-    assert main(["compress", "--sample", "spot", str(tmp_path / "s.jxm"), "--keep", "0.2", "--view", str(cpage)]) == 0
-    cfg = _config(cpage.read_text())
-    assert len(cfg["panels"]) == 2 and cfg["legend"]["label"] == "vertex error" and cfg["legend"]["high"] > 0
-    hpage = tmp_path / "h.html"
-    assert main(["hash", "--compare", str(src), str(ref), "--view", str(hpage)]) == 0
-    assert len(_config(hpage.read_text())["panels"]) == 2
-    assert main(["hash", str(src), "--view", str(hpage)]) == 1
+    assert len(viewer_config(out.read_text())["panels"]) == 2
 
 
 def _chromium() -> str:

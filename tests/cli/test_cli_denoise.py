@@ -1,6 +1,8 @@
-"""The jaxmesh command line: output, exit codes, errors."""
+"""`jaxmesh noise` and `jaxmesh denoise`, on one mesh and on a dataset (--out-dir):
+output, exit codes, errors, and files equal to what the library computes."""
 
 import json
+import socket
 import subprocess
 import sys
 
@@ -9,96 +11,7 @@ import pytest
 
 import jaxmesh
 from jaxmesh.cli import main
-from conftest import shared_mesh_path
-
-
-@pytest.fixture(scope="module")
-def small_pair(tmp_path_factory):
-    """A noisy icosphere (642 vertices, σ = 0.3 ℓ̄) with one isolated vertex far away
-    (so the boxes of all and of used vertices differ), and its clean original, as
-    files.  The commands' logic does not need the 2.9k-vertex sample; the tests that
-    tune share one compiled tuner through these shapes."""
-    import trimesh
-
-    d = tmp_path_factory.mktemp("small")
-    s = trimesh.creation.icosphere(3)
-    clean = jaxmesh.Mesh.from_arrays(np.vstack([s.vertices, [[5.0, 5.0, 5.0]]]), s.faces, warn=False)
-    noisy = jaxmesh.add_noise(clean, 0.3, 7)
-    noisy = noisy.with_vertices(noisy.vertices.at[-1].set(clean.vertices[-1]))
-    paths = str(d / "noisy.ply"), str(d / "clean.ply")
-    jaxmesh.save(noisy, paths[0])
-    jaxmesh.save(clean, paths[1])
-    return paths
-
-
-def test_info_json_on_sample(capsys):
-    assert main(["info", "--json", "--sample", "spot"]) == 0
-    info = json.loads(capsys.readouterr().out)
-    assert (info["vertices"], info["faces"], info["edges"], info["euler_characteristic"]) == (2930, 5856, 8784, 2)
-    assert info["genus"] == 0 and info["path"] == "sample:spot"
-
-
-def test_info_human_output_and_several_files(capsys, tmp_path):
-    p = shared_mesh_path("eight.ply")
-    assert main(["info", str(p), str(p)]) == 0
-    out = capsys.readouterr().out
-    assert out.count("eight.ply") == 2 and "genus" in out and "euler characteristic   -2" in out
-    assert main(["info", "--json", str(p), str(p)]) == 0
-    lines = capsys.readouterr().out.strip().splitlines()
-    assert [json.loads(ln)["genus"] for ln in lines] == [2, 2]
-
-
-def test_errors_and_exit_codes(capsys, tmp_path):
-    assert main(["info"]) == 1
-    assert "no mesh given" in capsys.readouterr().err
-    assert main(["info", str(tmp_path / "absent.ply")]) == 1
-    err = capsys.readouterr().err
-    assert err.startswith("jaxmesh: error:") and "no such file" in err
-    bad = tmp_path / "bad.off"
-    bad.write_text("nonsense")
-    assert main(["info", str(bad)]) == 1
-    assert "bad.off" in capsys.readouterr().err
-    assert main([]) == 2
-    with pytest.raises(SystemExit) as e:
-        main(["info", "--sample", "nope"])
-    assert e.value.code == 2
-
-
-def test_warnings_go_to_stderr(capsys, tmp_path):
-    q = tmp_path / "quad.obj"
-    q.write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n")
-    assert main(["info", "--json", str(q)]) == 0
-    captured = capsys.readouterr()
-    assert json.loads(captured.out)["faces"] == 2
-    assert "jaxmesh: warning:" in captured.err and "polygons" in captured.err
-
-
-def test_python_dash_m_entry_point():
-    r = subprocess.run([sys.executable, "-m", "jaxmesh", "info", "--json", "--sample", "spot"],
-                       capture_output=True, text=True, timeout=120)
-    assert r.returncode == 0, r.stderr
-    assert json.loads(r.stdout)["vertices"] == 2930
-
-
-def test_convert_never_overwrites_without_force(capsys, tmp_path):
-    import jaxmesh
-
-    src = shared_mesh_path("eight.ply")
-    out = tmp_path / "eight.obj"
-    assert main(["convert", str(src), str(out)]) == 0
-    assert jaxmesh.load(out).num_faces == 1536
-    out.write_text("keep me")
-    assert main(["convert", str(src), str(out)]) == 1
-    assert "--force" in capsys.readouterr().err and out.read_text() == "keep me"
-    assert main(["convert", str(src), str(out), "--force"]) == 0
-    assert jaxmesh.load(out).num_faces == 1536
-    # PLY -> PLY keeps every coordinate bit
-    ply = tmp_path / "eight.ply"
-    assert main(["convert", str(src), str(ply)]) == 0
-    import trimesh
-
-    np.testing.assert_array_equal(trimesh.load(ply, process=False).vertices,
-                                  trimesh.load(src, process=False).vertices)
+from conftest import shared_mesh_path, write_dataset
 
 
 def test_noise_then_denoise_with_reference(capsys, tmp_path):
@@ -147,23 +60,6 @@ def test_denoise_errors(capsys, tmp_path, small_pair):
     with pytest.raises(SystemExit) as e:
         main(["denoise", noisy, out, "--method", "kernel", "--iterations", "2.5"])
     assert e.value.code == 2
-
-
-def test_list_methods_and_demo(capsys, tmp_path):
-    from jaxmesh.denoise import METHODS
-
-    assert main(["denoise", "--list-methods"]) == 0
-    listing = capsys.readouterr().out
-    assert all(f"{name}:" in listing for name in METHODS)
-    assert main(["demo", "--out", str(tmp_path)]) == 0
-    out = capsys.readouterr().out
-    rows = {ln.split()[0]: ln for ln in out.splitlines() if ln.startswith(("noisy", "kernel", "taubin"))}
-    ratio = lambda ln: float(ln.split("x")[0].split()[-1])  # noqa: E731
-    assert ratio(rows["noisy"]) == 1.0 and ratio(rows["kernel"]) < 0.2 and ratio(rows["taubin"]) < 0.2
-    assert sorted(p.name for p in tmp_path.iterdir()) == [
-        "bunny_clean.ply", "bunny_kernel.ply", "bunny_noisy.ply", "bunny_taubin.ply"]
-    assert main(["demo", "--out", str(tmp_path)]) == 1
-    assert main(["demo", "--out", str(tmp_path), "--force"]) == 0
 
 
 def test_denoise_lam_auto_blind(capsys, tmp_path, small_pair):
@@ -246,3 +142,56 @@ def test_lam_auto_then_the_reported_lam_writes_the_same_file(capsys, tmp_path, s
     # and the isolated vertex stays where it was
     out = jaxmesh.load(tmp_path / "a.ply", dtype=np.float64)
     np.testing.assert_allclose(np.asarray(out.vertices)[-1], [5.0, 5.0, 5.0], atol=1e-12)
+
+
+# --------------------------------------------------------------------------- datasets (--out-dir)
+@pytest.mark.filterwarnings("ignore::jaxmesh.mesh.MeshWarning")
+def test_a_corrupt_file_is_reported_and_skipped_and_the_exit_status_says_so(tmp_path, capsys):
+    paths = write_dataset(tmp_path / "in", 4)
+    (tmp_path / "in" / "m1b.ply").write_text("ply\nformat ascii 1.0\nelement vertex 9\nend_header\n0 0\n")
+    (tmp_path / "in" / "notes.txt").write_text("not a mesh, not picked up")
+    whole = paths[2].read_bytes()                       # its header is intact, its body cut: fails when read
+    (tmp_path / "in" / "m2b.ply").write_bytes(whole[: len(whole) - 40])
+    report = tmp_path / "r.jsonl"
+    rc = main(["denoise", "--out-dir", str(tmp_path / "out"), str(tmp_path / "in"), "--method", "taubin",
+               "--report", str(report)])
+    out, err = capsys.readouterr()
+    assert rc == 1 and "4 written, 0 skipped (exist), 2 failed" in out
+    assert err.count("jaxmesh: error:") == 2 and "m1b.ply" in err and "m2b.ply" in err
+    lines = [json.loads(line) for line in report.read_text().splitlines()]
+    assert sorted(r["status"] for r in lines) == ["failed"] * 2 + ["ok"] * 4
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == sorted(p.name for p in paths)
+
+
+def test_out_dir_refuses_what_it_cannot_do(tmp_path, capsys):
+    assert main(["denoise", "--out-dir", str(tmp_path / "o"), str(tmp_path), "--method", "kernel", "--tune"]) == 1
+    assert "not supported with --out-dir" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.slow   # three subprocesses, each importing JAX and compiling
+@pytest.mark.filterwarnings("ignore::jaxmesh.mesh.MeshWarning")
+def test_two_processes_with_jax_distributed_equal_one(tmp_path):
+    """Two CLI processes on 127.0.0.1 (jax.distributed, a free coordinator port),
+    each denoising its share: together they write exactly the files one process
+    writes, byte for byte."""
+    write_dataset(tmp_path / "in", 6)
+    common = [sys.executable, "-m", "jaxmesh", "denoise", str(tmp_path / "in"), "--method", "taubin",
+              "--iterations", "4", "--batch-size", "2"]
+    assert subprocess.run(common + ["--out-dir", str(tmp_path / "one")], capture_output=True).returncode == 0
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    procs = [subprocess.Popen(common + ["--out-dir", str(tmp_path / "two"), "--coordinator", f"127.0.0.1:{port}",
+                                        "--num-processes", "2", "--process-id", str(i)],
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE) for i in (0, 1)]
+    outs = [p.communicate(timeout=120) for p in procs]
+    assert [p.returncode for p in procs] == [0, 0], [o[1][-500:] for o in outs]
+    written = [int(o[0].split()[0]) for o in outs]
+    assert sorted(written) == [3, 3]                                  # each its share
+    one = sorted(p.name for p in (tmp_path / "one").iterdir())
+    assert sorted(p.name for p in (tmp_path / "two").iterdir()) == one
+    for name in one:
+        assert (tmp_path / "one" / name).read_bytes() == (tmp_path / "two" / name).read_bytes()
+
+

@@ -1,0 +1,25 @@
+"""`jaxmesh stats`: the JSON summary equals the library's, the six-panel figure is
+written, and an existing figure is never overwritten."""
+
+import json
+
+import pytest
+
+import jaxmesh
+from jaxmesh import stats
+from jaxmesh.cli import main
+from conftest import shared_mesh_path
+
+
+def test_stats_json_and_figure(tmp_path, capsys):
+    pytest.importorskip("matplotlib")
+    path = shared_mesh_path("eight.ply")
+    s = stats.mesh_statistics(jaxmesh.load(path), sources=20, seed=1)["summary"]
+    out = tmp_path / "six.png"
+    assert main(["stats", str(path), "--json", "--sources", "20", "--seed", "1", "--plot", str(out)]) == 0
+    printed = json.loads(capsys.readouterr().out)
+    assert printed["average_degree"] == pytest.approx(s["average_degree"])
+    assert printed["geodesic_heat_mean"] == pytest.approx(s["geodesic_heat_mean"])
+    assert out.stat().st_size > 10000
+    assert main(["stats", str(path), "--plot", str(out)]) == 1
+    assert "exists" in capsys.readouterr().err
