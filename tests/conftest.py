@@ -26,6 +26,13 @@ if os.environ.get("JAXMESH_TEST_XLA_OPTIMIZE") != "1":
                                " --xla_cpu_use_fusion_emitters=false").strip()
 
 os.environ["JAX_NUMPY_RANK_PROMOTION"] = "raise"
+# One BLAS / OpenMP thread per process: pytest-xdist runs one worker per core, and the
+# host solvers (CHOLMOD through cholespy, LAPACK) otherwise start a thread per core in
+# every worker, whose spinning threads slow the other worker down (a CLI test went from
+# 1.3 s alone to 15 s in the full run).  Set when the controller loads this file, before
+# the workers start, so they inherit it before they load numpy.
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import jax  # noqa: E402
 import numpy as np  # noqa: E402
