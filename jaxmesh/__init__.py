@@ -30,8 +30,8 @@ from .transforms import normalize
 __version__ = "0.1.0"
 
 #: subpackages imported on first attribute access (PEP 562)
-_LAZY = ("batch", "compress", "data", "dataset", "denoise", "hash", "metrics", "operators", "sparse",
-         "stats", "tune", "vf")
+_LAZY = ("batch", "compress", "data", "dataset", "denoise", "geodesics", "hash", "intrinsic", "linalg", "metrics",
+         "operators", "sparse", "spectral", "stats", "tune", "vf")
 
 
 def __getattr__(name: str):

@@ -106,13 +106,16 @@ def _operator(adjacency: sp.csr_matrix, kind: str) -> tuple[sp.csr_matrix, np.nd
     raise ValueError(f"kind must be one of {KINDS}, got {kind!r}")
 
 
-def _smallest(mat: sp.csr_matrix, k: int, dense: bool) -> tuple[np.ndarray, np.ndarray]:
+def _smallest(mat: sp.csr_matrix, k: int, dense: bool, sigma: float = -1e-2) -> tuple[np.ndarray, np.ndarray]:
+    """The k smallest eigenpairs of a symmetric positive semi-definite matrix, ascending:
+    dense ``eigh`` (only those), or ARPACK shift-invert around ``sigma`` < 0 (below the
+    spectrum, so the factorization is definite) from a fixed start vector."""
     n = mat.shape[0]
     if dense or k >= n - 1:
         w, u = scipy.linalg.eigh(mat.toarray(), subset_by_index=[0, min(k, n) - 1], driver="evx")
         return w, u
     v0 = fixed_vectors(n, 1, salt=7)[:, 0]
-    w, u = spla.eigsh(mat.tocsc(), k=k, sigma=-1e-2, which="LM", v0=v0, tol=0)
+    w, u = spla.eigsh(mat.tocsc(), k=k, sigma=sigma, which="LM", v0=v0, tol=0)
     order = np.argsort(w, kind="stable")
     return w[order], u[:, order]
 

@@ -229,7 +229,9 @@ METHODS: dict[str, Method] = {
         Method("cotangent_implicit", functools.partial(cotangent_flow, implicit=True), {
             "dt": Param(0.3, "continuous", "time step in units of the mean vertex area", (0.01, 100.0), True),
             "iterations": _it(3),
-        }, "mean-curvature flow, cotangent weights, implicit (CG)", "Desbrun et al. 1999"),
+            "solver": Param("cg", "choice", "linear solver of each step: matrix-free CG or a sparse Cholesky "
+                            "factorization (jaxmesh.linalg)", choices=("cg", "cholesky")),
+        }, "mean-curvature flow, cotangent weights, implicit", "Desbrun et al. 1999"),
         Method("normal_mean", functools.partial(normal_filtering, kind="mean"), {
             "iterations": _it(1, "outer rounds"),
             "normal_iterations": _it(5, "normal filter passes per round"),

@@ -1,0 +1,189 @@
+"""jaxmesh.intrinsic and jaxmesh.geodesics: edge flips checked by hand, the Delaunay
+property and the metric kept on real meshes, the heat method against a plain
+SciPy implementation of the paper, against exact geodesics, and its derivatives in
+the vertex positions against finite differences."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+import trimesh
+from jax.test_util import check_grads
+
+import jaxmesh
+from jaxmesh.geodesics import boundary_vertices, heat_distances
+from jaxmesh.intrinsic import (cotangents_from_lengths, intrinsic_delaunay, intrinsic_lengths,
+                               triangle_areas_from_lengths)
+from conftest import assert_refused, grid_arrays, loop_cotangent_matrix, shared_mesh_path
+
+
+def kite(fold: bool):
+    """Two thin triangles (a, b, c), (b, a, d) on the long diagonal a–b, flat or folded
+    by 90° about it: their angles at c and d are obtuse, so a–b must flip to c–d."""
+    d = [1.0, 0.0, -0.2] if fold else [1.0, -0.2, 0.0]
+    v = np.array([[0.0, 0, 0], [2, 0, 0], [1, 0.2, 0], d])
+    return jaxmesh.Mesh.from_arrays(v, np.array([[0, 1, 2], [1, 0, 3]]))
+
+
+@pytest.mark.parametrize("fold", [False, True])
+def test_one_flip_by_hand(fold):
+    mesh = kite(fold)
+    tri = intrinsic_delaunay(mesh)
+    assert tri.num_flips == 1
+    e = int(tri.flips[0, 0])
+    assert sorted(np.asarray(mesh.edges)[e]) == [0, 1]
+    lengths = np.asarray(intrinsic_lengths(mesh, tri))
+    # flat: the other diagonal, 0.4; folded: the same, measured across the unfolded pair
+    # (the chord through space would be 0.2·√2)
+    assert lengths[e] == pytest.approx(0.4, rel=1e-12)
+    assert {frozenset(f) for f in tri.faces.tolist()} == {frozenset({2, 0, 3}), frozenset({3, 1, 2})}
+    assert sorted(tri.pairs[tri.edge_pair[e]].tolist()) == [2, 3]
+    l = lengths[tri.face_edges]
+    assert triangle_areas_from_lengths(l, np).sum() == pytest.approx(0.4, rel=1e-12)   # 2 · ½ · 2 · 0.2
+
+
+def test_flips_make_real_meshes_delaunay_and_keep_their_area():
+    for name in ("shark.ply", "camelhead.ply"):
+        mesh = jaxmesh.load(shared_mesh_path(name), dtype=np.float64)
+        tri = intrinsic_delaunay(mesh)
+        l = np.asarray(intrinsic_lengths(mesh, tri))[tri.face_edges]
+        cot = cotangents_from_lengths(l, np)
+        w = np.bincount(tri.face_edges.ravel(), 0.5 * cot.ravel(), tri.num_edges)
+        interior = np.bincount(tri.face_edges.ravel(), minlength=tri.num_edges) == 2
+        before = np.bincount(np.asarray(mesh.face_edges).ravel(), 0.5 * np.asarray(
+            jaxmesh.geometry.corner_cotangents(mesh)).ravel(), mesh.num_edges)
+        assert (before[interior] < -1e-6).sum() > 100 and tri.num_flips > 1000, name
+        assert w[interior].min() > -1e-10, name                     # every interior weight ≥ 0
+        area = float(jnp.sum(jaxmesh.geometry.face_areas(mesh)))
+        assert triangle_areas_from_lengths(l, np).sum() == pytest.approx(area, rel=1e-12), name
+        # no flip touches a boundary edge
+        np.testing.assert_array_equal(np.asarray(boundary_vertices(mesh)).sum(),
+                                      len(np.unique(np.asarray(mesh.edges)[~interior & (np.bincount(
+                                          np.asarray(mesh.face_edges).ravel(), minlength=mesh.num_edges) == 1)])))
+
+
+def test_intrinsic_lengths_are_differentiable_in_the_positions():
+    v, f = grid_arrays(4, 3, jitter=0.25, seed=3)
+    v = np.c_[v[:, :2], 0.3 * np.sin(v[:, 0]) * np.cos(v[:, 1])]
+    mesh = jaxmesh.Mesh.from_arrays(v, f)
+    tri = intrinsic_delaunay(mesh)
+    assert tri.num_flips > 0
+    lengths = jax.jit(lambda x: intrinsic_lengths(mesh.with_vertices(x), tri))
+    w = jnp.asarray(np.random.default_rng(0).standard_normal(mesh.num_edges))
+    check_grads(lambda x: jnp.dot(lengths(x), w), (mesh.vertices,), order=1, modes=("fwd", "rev"),
+                atol=1e-6, rtol=1e-6, eps=1e-5)
+
+
+def paper_heat_method(v, f, sources, t):
+    """Crane et al. 2013 on the mesh's own triangles with SciPy, written from the paper
+    (Neumann boundary, the heat step's negative weights clamped as the library does)."""
+    n = len(v)
+    w = 0.5 * loop_cotangent_matrix(v, f)
+    area = np.zeros(len(f))
+    grads = np.zeros((len(f), 3, 3))
+    for k, tri in enumerate(f):
+        p = v[tri]
+        nrm = np.cross(p[1] - p[0], p[2] - p[0])
+        area[k] = 0.5 * np.linalg.norm(nrm)
+        unit = nrm / np.linalg.norm(nrm)
+        for j in range(3):
+            e = p[(j + 2) % 3] - p[(j + 1) % 3]                  # edge opposite corner j
+            grads[k, j] = np.cross(unit, e) / (2 * area[k])
+    mass = np.zeros(n)
+    np.add.at(mass, f.ravel(), np.repeat(area / 3, 3))
+    wc = np.maximum(w, 0)
+    heat = sp.csc_matrix(np.diag(mass) + t * (np.diag(wc.sum(1)) - wc))
+    ell = np.mean([np.linalg.norm(v[a] - v[b]) for a, b in {tuple(sorted(e)) for t_ in f for e in
+                                                              ((t_[0], t_[1]), (t_[1], t_[2]), (t_[2], t_[0]))}])
+    poisson = sp.csc_matrix(np.diag(w.sum(1)) - w + np.diag(1e-12 * mass / ell ** 2))
+    out = []
+    for s in sources:
+        delta = np.zeros(n)
+        delta[s] = 1
+        u = spla.spsolve(heat, delta)
+        b = np.zeros(n)
+        for k, tri in enumerate(f):
+            g = sum(u[tri[j]] * grads[k, j] for j in range(3))
+            x = -g / np.linalg.norm(g)
+            for j in range(3):
+                b[tri[j]] += area[k] * grads[k, j] @ x
+        phi = spla.spsolve(poisson, b)
+        out.append(phi - phi[s])
+    return np.array(out)
+
+
+def test_heat_method_equals_a_plain_implementation_of_the_paper():
+    v, f = grid_arrays(6, 5, jitter=0.15, seed=2)
+    v = np.c_[v[:, :2], 0.2 * np.sin(v[:, 0])]
+    mesh = jaxmesh.Mesh.from_arrays(v, f)
+    src = np.array([0, 17, 40])
+    t = 1.3 * float(jaxmesh.mean_edge_length(mesh)) ** 2
+    got = heat_distances(mesh, src, t, boundary="neumann", intrinsic=False)
+    np.testing.assert_allclose(got, paper_heat_method(v, f, src, t), rtol=1e-9, atol=1e-12)
+
+
+def test_boundary_conditions():
+    s = trimesh.creation.icosphere(2)
+    closed = jaxmesh.Mesh.from_arrays(s.vertices, s.faces)
+    assert not bool(jnp.any(boundary_vertices(closed)))
+    np.testing.assert_array_equal(heat_distances(closed, [0, 5]), heat_distances(closed, [0, 5], boundary="neumann"))
+    v, f = grid_arrays(6, 6)
+    flat = jaxmesh.Mesh.from_arrays(v, f)
+    on = np.asarray(boundary_vertices(flat))
+    assert on.sum() == 24 and not on[3 * 7 + 3]
+    centre = 3 * 7 + 3
+    exact = np.linalg.norm(v - v[centre], axis=1)
+    for bc in ("average", "neumann", "dirichlet"):
+        d = np.asarray(heat_distances(flat, [centre], boundary=bc))[0]
+        assert np.abs(d - exact).mean() < 0.1 * exact.mean(), bc     # a flat grid: Euclidean distances
+
+
+def test_heat_distances_close_to_exact_geodesics_on_thin_triangles():
+    """The shark (8.7 % of its faces have an angle under 5°) and the open camel head,
+    against exact geodesic paths (edge flips, Sharp & Crane 2020): the intrinsic
+    Delaunay triangulation halves the error of the mesh's own triangles."""
+    pp3d = pytest.importorskip("potpourri3d", reason="potpourri3d (the exact-geodesic reference) is not installed")
+    for name, bound in (("shark.ply", 0.045), ("camelhead.ply", 0.025)):
+        mesh = jaxmesh.load(shared_mesh_path(name), dtype=np.float64)
+        v, f = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+        src = jaxmesh.stats.sample_sources(mesh, 5, seed=1)
+        targets = np.random.default_rng(2).choice(len(v), 12, replace=False)
+        solver = pp3d.EdgeFlipGeodesicSolver(v, f)
+        exact = np.array([[np.linalg.norm(np.diff(solver.find_geodesic_path(int(s), int(t)), axis=0), axis=1).sum()
+                           for t in targets] for s in src])
+        ok = exact > 0
+        rel = lambda d: np.abs(np.asarray(d)[:, targets][ok] - exact[ok]) / exact[ok]  # noqa: E731
+        intrinsic = rel(heat_distances(mesh, src)).mean()
+        own = rel(heat_distances(mesh, src, intrinsic=False)).mean()
+        assert intrinsic < bound and intrinsic < 0.6 * own, (name, intrinsic, own)
+
+
+def test_heat_distances_are_differentiable_in_the_positions():
+    s = trimesh.creation.icosphere(1)
+    v = s.vertices * (1 + 0.1 * np.random.default_rng(0).standard_normal((len(s.vertices), 1)))
+    mesh = jaxmesh.Mesh.from_arrays(v, s.faces)
+    tri = intrinsic_delaunay(mesh)
+    src = jnp.array([0, 7])
+    w = jnp.asarray(np.random.default_rng(1).standard_normal((2, mesh.num_vertices)))
+
+    @jax.jit
+    def loss(x):
+        return jnp.sum(w * heat_distances(mesh.with_vertices(x), src, triangulation=tri))
+
+    np.testing.assert_allclose(loss(mesh.vertices), jnp.sum(w * heat_distances(mesh, src)), rtol=1e-12)
+    check_grads(loss, (mesh.vertices,), order=1, modes=("fwd", "rev"), atol=1e-6, rtol=1e-6)
+
+
+def test_refusals():
+    s = trimesh.creation.icosphere(1)
+    mesh = jaxmesh.Mesh.from_arrays(s.vertices, s.faces)
+    with pytest.raises(ValueError, match="triangulation="):
+        jax.jit(lambda x: heat_distances(mesh.with_vertices(x), [0]))(mesh.vertices)
+    other = jaxmesh.Mesh.from_arrays(*grid_arrays(3, 3))
+    with pytest.raises(ValueError, match="another mesh"):
+        heat_distances(mesh, [0], triangulation=intrinsic_delaunay(other))
+    with pytest.raises(ValueError, match="sources must lie"):
+        heat_distances(mesh, [0, mesh.num_vertices])
+    assert_refused(heat_distances, mesh, [0], boundary="robin", param="boundary", message="boundary must be one of")

@@ -1,0 +1,140 @@
+"""jaxmesh.linalg: the sparse symmetric solve against SciPy, its derivatives against
+finite differences, jit = eager, vmap = loop, the factor reused by the backward pass,
+and the refusals."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+import trimesh
+from jax.test_util import check_grads
+
+import jaxmesh
+from jaxmesh import linalg
+from conftest import assert_refused
+
+BACKENDS = ["lu", pytest.param("cholesky", marks=pytest.mark.skipif(
+    linalg.default_backend() != "cholesky", reason="cholespy is not installed (pip install cholespy)"))]
+
+
+@pytest.fixture(scope="module")
+def system():
+    """A random symmetric positive-definite matrix on an icosphere's pattern
+    (diagonally dominant, negative off-diagonal entries, like M + tL)."""
+    s = trimesh.creation.icosphere(1)
+    mesh = jaxmesh.Mesh.from_arrays(s.vertices, s.faces)
+    rng = np.random.default_rng(0)
+    n, e = mesh.num_vertices, np.asarray(mesh.edges)
+    a = -rng.uniform(0.5, 1.5, len(e))
+    d = np.bincount(e.ravel(), np.repeat(-a, 2), n) + rng.uniform(0.1, 1.0, n)
+    b = rng.standard_normal((n, 3))
+    return mesh, jnp.asarray(d), jnp.asarray(a), jnp.asarray(b)
+
+
+def scipy_matrix(edges, d, a):
+    e = np.asarray(edges)
+    n = len(d)
+    rows = np.concatenate([np.arange(n), e[:, 0], e[:, 1]])
+    cols = np.concatenate([np.arange(n), e[:, 1], e[:, 0]])
+    return sp.csc_matrix((np.concatenate([d, a, a]), (rows, cols)), shape=(n, n))
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_solve_equals_scipy_and_matvec_inverts_it(system, backend):
+    mesh, d, a, b = system
+    x = linalg.mesh_solve(mesh, d, a, b, backend=backend)
+    want = spla.spsolve(scipy_matrix(mesh.edges, np.asarray(d), np.asarray(a)), np.asarray(b))
+    np.testing.assert_allclose(x, want, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(linalg.sparse_matvec(mesh.edges, d, a, x), b, atol=1e-12)
+    x1 = linalg.mesh_solve(mesh, d, a, b[:, 0], backend=backend)            # one right-hand side
+    np.testing.assert_allclose(x1, want[:, 0], rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_derivatives_match_finite_differences(system, backend):
+    mesh, d, a, b = system
+
+    def f(d, a, b):     # check_grads evaluates with numpy arrays: the annotations ask for JAX arrays
+        return jnp.sum(jnp.sin(linalg.mesh_solve(mesh, jnp.asarray(d), jnp.asarray(a), jnp.asarray(b),
+                                                 backend=backend)))
+
+    check_grads(f, (d, a, b), order=1, modes=("fwd", "rev"), atol=1e-7, rtol=1e-7)
+
+
+def test_jit_equals_eager_and_the_backward_pass_reuses_the_factor(system):
+    mesh, d, a, b = system
+
+    def f(d, a, b):
+        return jnp.sum(linalg.mesh_solve(mesh, d, a, b) ** 2)
+
+    eager = jax.grad(f, argnums=(0, 1, 2))(d, a, b)
+    linalg.clear_factor_cache()
+    jitted = jax.jit(jax.grad(f, argnums=(0, 1, 2)))(d, a, b)
+    counts = linalg.clear_factor_cache()
+    for u, v in zip(eager, jitted):
+        np.testing.assert_allclose(u, v, rtol=1e-12, atol=1e-14)
+    assert counts == {"factorizations": 1, "solves": 2}        # forward solve, then one more for the gradient
+    # the gradient itself, by the adjoint formulas of the module docstring
+    x = linalg.mesh_solve(mesh, d, a, b)
+    bbar = linalg.mesh_solve(mesh, d, a, 2 * x)
+    e = np.asarray(mesh.edges)
+    np.testing.assert_allclose(jitted[2], bbar, rtol=1e-10)
+    np.testing.assert_allclose(jitted[0], -np.sum(np.asarray(bbar) * np.asarray(x), 1), rtol=1e-10)
+    want_a = -np.sum(np.asarray(bbar)[e[:, 0]] * np.asarray(x)[e[:, 1]]
+                     + np.asarray(bbar)[e[:, 1]] * np.asarray(x)[e[:, 0]], 1)
+    np.testing.assert_allclose(jitted[1], want_a, rtol=1e-10)
+
+
+def test_vmap_over_right_hand_sides_and_over_matrices_equals_a_loop(system):
+    mesh, d, a, b = system
+    linalg.clear_factor_cache()
+    cols = jax.vmap(lambda r: linalg.mesh_solve(mesh, d, a, r), in_axes=1, out_axes=1)(b)
+    assert linalg.clear_factor_cache() == {"factorizations": 1, "solves": 1}   # one factor, one multi-column solve
+    np.testing.assert_allclose(cols, linalg.mesh_solve(mesh, d, a, b), rtol=1e-13)
+    scales = jnp.array([1.0, 2.0, 5.0])
+    batch = jax.jit(jax.vmap(lambda s: linalg.mesh_solve(mesh, d * s, a * s, b)))(scales)
+    for k, s in enumerate(scales):
+        np.testing.assert_allclose(batch[k], linalg.mesh_solve(mesh, d * s, a * s, b), rtol=1e-12)
+    np.testing.assert_allclose(batch[1], batch[0] / 2, rtol=1e-12)
+
+
+def test_refusals():
+    e = jnp.array([[0, 1], [1, 2]])
+    b = jnp.ones(3)
+    if linalg.default_backend() == "cholesky":
+        with pytest.raises(ValueError, match="not positive definite"):
+            linalg.sparse_solve(e, jnp.ones(3), jnp.array([2.0, 0.1]), b, backend="cholesky")
+    # the indefinite matrix is fine for LU; a singular one is not
+    x = linalg.sparse_solve(e, jnp.ones(3), jnp.array([2.0, 0.1]), b, backend="lu")
+    np.testing.assert_allclose(linalg.sparse_matvec(e, jnp.ones(3), jnp.array([2.0, 0.1]), x), b, atol=1e-12)
+    with pytest.raises(ValueError, match="singular"):
+        linalg.sparse_solve(e, jnp.array([1.0, 2.0, 1.0]), jnp.array([-1.0, -1.0]), b, backend="lu")
+    assert_refused(linalg.sparse_solve, e, jnp.ones(3), jnp.ones(2), b, backend="qr", param="backend",
+                   message="backend must be one of")
+    assert_refused(linalg.sparse_solve, e, jnp.ones(3), jnp.ones(2), jnp.ones(4), param="b",
+                   message="b must have shape")
+    assert_refused(linalg.sparse_solve, e, jnp.ones(3), jnp.ones(3), b, param="edge_values",
+                   message="edge_values must have shape")
+
+
+def test_implicit_flow_with_the_direct_solve_equals_cg_and_batches():
+    from jaxmesh.denoise import METHODS
+
+    s = trimesh.creation.icosphere(3)
+    clean = jaxmesh.Mesh.from_arrays(s.vertices, s.faces)
+    noisy = jaxmesh.add_noise(clean, 0.3, 4)
+    flow = METHODS["cotangent_implicit"]
+    direct = flow(noisy, solver="cholesky", iterations=2).vertices
+    np.testing.assert_allclose(direct, flow(noisy, solver="cg", iterations=2).vertices, atol=1e-9)
+    batch = noisy.with_vertices(jnp.stack([noisy.vertices, clean.vertices]))
+    both = flow(batch, solver="cholesky", iterations=2).vertices
+    np.testing.assert_allclose(both[0], direct, atol=1e-13)
+    np.testing.assert_allclose(both[1], flow(clean, solver="cholesky", iterations=2).vertices, atol=1e-13)
+
+    def loss(x, solver):
+        return jnp.sum(flow(noisy.with_vertices(x), solver=solver, iterations=1).vertices ** 2)
+
+    np.testing.assert_allclose(jax.grad(loss)(noisy.vertices, "cholesky"), jax.grad(loss)(noisy.vertices, "cg"),
+                               atol=1e-7)
