@@ -26,6 +26,7 @@ __all__ = [
     "cauchy_weight",
     "rms_vertex_error",
     "mean_normal_angle_error",
+    "error_summary",
     "surface_distance",
     "point_triangle_distance",
     "sample_surface",
@@ -162,6 +163,22 @@ def mean_normal_angle_error(reference: Mesh, estimate) -> Float[Array, "*batch"]
     total = jnp.sum(jnp.where(valid, ang, 0), axis=-1)
     count = jnp.sum(valid, axis=-1).astype(ang.dtype)
     return jnp.degrees(safe_divide(total, count))
+
+
+def error_summary(reference: Mesh, estimate: Mesh) -> dict[str, float]:
+    """The two errors jaxmesh reports against a clean mesh, as Python floats:
+    ``visual_error`` (:func:`visual_error`, E) and ``normal_angle_deg``
+    (:func:`mean_normal_angle_error`).  Host-side (concrete values); the CLI's and
+    the dataset runner's reports.
+
+    Arguments:
+        reference: the clean mesh; its connectivity is used.
+        estimate: a single mesh with the reference's connectivity.
+
+    Returns:
+        ``{"visual_error": E, "normal_angle_deg": degrees}``."""
+    return {"visual_error": float(visual_error(reference, estimate)),
+            "normal_angle_deg": float(mean_normal_angle_error(reference, estimate))}
 
 
 # --------------------------------------------------------------------------

@@ -14,7 +14,7 @@ from .. import data
 from ..io import load
 
 __all__ = ["CLIError", "io_arguments", "mesh_arguments", "load_input", "mesh_source", "check_output",
-           "positional_output", "print_record", "with_caveats", "errors", "view_argument", "check_view",
+           "positional_output", "print_record", "with_caveats", "view_argument", "check_view",
            "write_view"]
 
 
@@ -106,14 +106,6 @@ def with_caveats(fn, *args, **kwargs):
     for w in caught:
         print(f"jaxmesh: warning: {w.message}", file=sys.stderr)
     return out, [str(w.message) for w in caught if issubclass(w.category, BlindTuningWarning)]
-
-
-def errors(reference, mesh) -> dict[str, float]:
-    """Visual error and mean normal angle error against a reference."""
-    from ..metrics import mean_normal_angle_error, visual_error
-
-    return {"visual_error": float(visual_error(reference, mesh)),
-            "normal_angle_deg": float(mean_normal_angle_error(reference, mesh))}
 
 
 def view_argument(p: argparse.ArgumentParser, what: str) -> None:

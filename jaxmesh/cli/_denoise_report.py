@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import json
 
-from ._common import errors
+from ..metrics import error_summary as errors
 
 
 def _errors_lines(summary: dict) -> None:

@@ -11,7 +11,8 @@ from ..denoise import METHODS
 from ..io import save
 from ..noise import add_noise
 from ..transforms import normalize
-from ._common import check_output, errors
+from ..metrics import error_summary as errors
+from ._common import check_output
 
 HELP = "denoise the shipped bunny and print the errors before and after"
 NAMES = {"clean": "bunny_clean.ply", "noisy": "bunny_noisy.ply", "kernel": "bunny_kernel.ply",
