@@ -46,7 +46,7 @@ def _aux_for_batch(m, noisy, singles) -> dict:
     return m.prepare(singles[0])
 
 
-def _shared_search(noisy: Mesh, clean: Mesh, sigma, key, cfg: _Config):  # methods without aux inputs
+def _shared_search(noisy: Mesh, clean: Mesh | None, sigma, key, cfg: _Config):  # methods without aux inputs
     """One u for a padded batch of meshes: the loss is the mean of the per-mesh
     relative losses (each mesh in its own frame)."""
     centre, scale = jax.vmap(frame)(noisy)
