@@ -25,9 +25,6 @@ from __future__ import annotations
 import concurrent.futures
 import dataclasses
 import functools
-import json
-import queue
-import threading
 import time
 from pathlib import Path
 from collections.abc import Callable, Sequence
@@ -39,6 +36,8 @@ import numpy as np
 
 from ..batch import batch_spec, pad_batch, unpad
 from ..mesh import Mesh
+from . import supervision
+from .streams import Report, Writer, read_ahead
 from .plan import LADDER_RATIO, LADDER_START, MESH_SUFFIXES, Batch, expand_inputs, peek_sizes, plan_batches, rung
 
 __all__ = ["DatasetSummary", "denoise_files"]
@@ -242,7 +241,8 @@ def denoise_files(inputs: Sequence[str | Path], out_dir: str | Path, method: str
                   overwrite: bool = False,
                   suffix: str | None = None, report: str | Path | None = None,
                   progress: Callable[[int, int], None] | None = None,
-                  share: tuple[int, int] | None = None) -> DatasetSummary:
+                  share: tuple[int, int] | None = None, reference: str | Path | None = None,
+                  tune_on: int = 0) -> DatasetSummary:
     """Denoise every mesh of ``inputs`` into ``out_dir`` in size buckets (module
     docstring): one compiled program per (padded size, batch size).
 
@@ -261,6 +261,11 @@ def denoise_files(inputs: Sequence[str | Path], out_dir: str | Path, method: str
         share: ``(i, n)``: this process takes every n-th input from the i-th (default
             ``(jax.process_index(), jax.process_count())``, so after
             ``jax.distributed.initialize`` each process denoises its own share).
+        reference: a folder of clean meshes (same file names): each report line gets
+            the errors before and after (:mod:`.supervision`).
+        tune_on: tune the ``"auto"`` parameters once on the first ``tune_on`` inputs
+            (against ``reference`` when given, else blind) and apply that setting to
+            all (default 0: each mesh tuned blind by itself).
 
     Returns:
         A :class:`DatasetSummary` (counts, compiles, padding waste, seconds, one
@@ -276,9 +281,13 @@ def denoise_files(inputs: Sequence[str | Path], out_dir: str | Path, method: str
     index, count = share if share is not None else (jax.process_index(), jax.process_count())
     if not 0 <= index < count:
         raise ValueError(f"share {share}: the index must be in [0, count)")
+    folder = supervision.check(reference, tune_on, _tuned(params), method != "auto" and bool(METHODS[method].aux))
     items, records = _collect(inputs, out_dir, suffix, overwrite, method, index, count)
+    if tune_on:
+        params, training = supervision.tune_on_subset(inputs, tune_on, method, params, _tuned(params), folder, load)
+        records = [{**rec, "tuned_on": training} for rec in records]
     out_dir.mkdir(parents=True, exist_ok=True)
-    log = _Report(report)
+    log = Report(report)
     todo = [k for k, rec in enumerate(records) if "status" not in rec]
     todo = [todo[j] for j in _read_sizes([items[k] for k in todo], load, [records[k] for k in todo])]
     for rec in records:
@@ -292,24 +301,15 @@ def denoise_files(inputs: Sequence[str | Path], out_dir: str | Path, method: str
         plan = [Batch((k,), 0, (0, 0, 0)) for k in todo]
     ahead = batched and not _tuned(params)
     compiled = _precompile(plan, method, params, jnp.result_type(float)) if ahead else {}
-    tally, writer, finished = _Tally(), _Writer(save, overwrite, log), 0
+    tally, writer, finished = _Tally(), Writer(save, overwrite, log), 0
     try:
-        for batch, meshes in _read_ahead(plan, items, load):
+        for batch, meshes in read_ahead(plan, items, load):
             t0 = time.perf_counter()
             results = (_run_batch(batch, meshes, method, params, tally, compiled, ladder) if batched
                        else {batch.items[0]: _run_single(meshes[0], method, params, records[batch.items[0]])})
             seconds = round((time.perf_counter() - t0) / len(batch.items), 4)
-            for k in batch.items:
-                r = results[k]
-                if isinstance(r, tuple):
-                    r, records[k]["params"] = r
-                if isinstance(r, Mesh):
-                    records[k].update(status="ok", vertices=r.num_vertices, faces=r.num_faces, seconds=seconds)
-                    records[k].setdefault("params", params)
-                    writer.put(r, items[k][1], records[k])
-                else:
-                    records[k].update(status="failed", error=f"{type(r).__name__}: {r}")
-                    log.write(records[k])
+            for k, noisy in zip(batch.items, meshes):
+                _settle(records[k], results[k], noisy, items[k], params, seconds, writer, log, folder)
             finished += len(batch.items)
             if progress is not None:
                 progress(finished, len(todo))
@@ -318,71 +318,26 @@ def denoise_files(inputs: Sequence[str | Path], out_dir: str | Path, method: str
     return _summary(records, tally, start)
 
 
+def _settle(rec: dict, result, noisy, item: tuple, params: dict, seconds: float, writer: Writer, log: Report,
+            folder: Path | None) -> None:
+    """Record one input's fate: a result goes to the writer (scored against its
+    reference there, when there is a reference folder), a failure to the report."""
+    from ..io import load
+
+    if isinstance(result, tuple):
+        result, rec["params"] = result
+    if not isinstance(result, Mesh):
+        rec.update(status="failed", error=f"{type(result).__name__}: {result}")
+        log.write(rec)
+        return
+    rec.update(status="ok", vertices=result.num_vertices, faces=result.num_faces, seconds=seconds)
+    rec.setdefault("params", params)
+    check = None if folder is None else functools.partial(supervision.score, rec, noisy, result, item[0], folder, load)
+    writer.put(result, item[1], rec, check)
+
+
 def _summary(records: list, tally: _Tally, start: float) -> DatasetSummary:
     count = lambda s: sum(r["status"] == s for r in records)   # noqa: E731
     waste = (tally.padded - tally.real) / tally.real if tally.real else 0.0
     return DatasetSummary(count("ok"), count("skipped"), count("failed"), len(tally.programs), waste,
                           round(time.perf_counter() - start, 3), records)
-
-
-def _read_ahead(plan: list[Batch], items, loader):
-    """(batch, its meshes) one batch ahead, read on a thread; a mesh that fails
-    to read comes as its exception."""
-    q: queue.Queue = queue.Queue(maxsize=1)
-
-    def read():
-        for b in plan:
-            meshes = []
-            for k in b.items:
-                try:
-                    meshes.append(loader(items[k][0]))
-                except (ValueError, OSError) as err:
-                    meshes.append(err)
-            q.put((b, meshes))
-        q.put(None)
-
-    threading.Thread(target=read, name="jaxmesh-read-ahead", daemon=True).start()
-    while (got := q.get()) is not None:
-        yield got
-
-
-class _Report:
-    """The JSON-lines report, a line per input as soon as its fate is known (so an
-    interrupted run keeps the lines of what it finished); None writes nothing."""
-
-    def __init__(self, path):
-        self._path, self._lock = path, threading.Lock()
-
-    def write(self, record: dict) -> None:
-        record.pop("_sizes", None)
-        if self._path is None:
-            return
-        with self._lock, open(self._path, "a", encoding="utf-8") as fh:
-            fh.write(json.dumps(record) + "\n")
-
-
-class _Writer:
-    """Writes results on a thread, behind the computation; a write that fails marks
-    its record; each record goes to the report once written."""
-
-    def __init__(self, save, overwrite: bool, log: _Report):
-        self._q: queue.Queue = queue.Queue(maxsize=64)
-        self._save, self._overwrite, self._log = save, overwrite, log
-        self._thread = threading.Thread(target=self._work, name="jaxmesh-write-behind", daemon=True)
-        self._thread.start()
-
-    def _work(self):
-        while (job := self._q.get()) is not None:
-            mesh, path, rec = job
-            try:
-                self._save(mesh, path, overwrite=self._overwrite)
-            except (ValueError, OSError) as err:
-                rec.update(status="failed", error=f"{type(err).__name__}: {err}")
-            self._log.write(rec)
-
-    def put(self, mesh, path, rec):
-        self._q.put((mesh, path, rec))
-
-    def close(self):
-        self._q.put(None)
-        self._thread.join()

@@ -1,0 +1,86 @@
+"""Host threads around the dataset runner's computation: a reader one batch
+ahead, a writer behind, and the JSON-lines report they feed."""
+
+from __future__ import annotations
+
+import json
+import queue
+import threading
+
+from .plan import Batch
+
+__all__ = ["read_ahead", "Report", "Writer"]
+
+
+def read_ahead(plan: list[Batch], items, loader):
+    """(batch, its meshes) one batch ahead, read on a thread; a mesh that fails
+    to read comes as its exception.
+
+    Arguments:
+        plan: the batches, in order.
+        items: (input path, output path) per item index.
+        loader: the mesh reader (:func:`jaxmesh.load`).
+
+    Returns:
+        A generator of (batch, [mesh or exception per item])."""
+    q: queue.Queue = queue.Queue(maxsize=1)
+
+    def read():
+        for b in plan:
+            meshes = []
+            for k in b.items:
+                try:
+                    meshes.append(loader(items[k][0]))
+                except (ValueError, OSError) as err:
+                    meshes.append(err)
+            q.put((b, meshes))
+        q.put(None)
+
+    threading.Thread(target=read, name="jaxmesh-read-ahead", daemon=True).start()
+    while (got := q.get()) is not None:
+        yield got
+
+
+class Report:
+    """The JSON-lines report, a line per input as soon as its fate is known (so an
+    interrupted run keeps the lines of what it finished); None writes nothing."""
+
+    def __init__(self, path):
+        self._path, self._lock = path, threading.Lock()
+
+    def write(self, record: dict) -> None:
+        record.pop("_sizes", None)
+        if self._path is None:
+            return
+        with self._lock, open(self._path, "a", encoding="utf-8") as fh:
+            fh.write(json.dumps(record) + "\n")
+
+
+class Writer:
+    """Writes results on a thread, behind the computation; a write that fails marks
+    its record; each record goes to the report once written."""
+
+    def __init__(self, save, overwrite: bool, log: Report):
+        self._q: queue.Queue = queue.Queue(maxsize=64)
+        self._save, self._overwrite, self._log = save, overwrite, log
+        self._thread = threading.Thread(target=self._work, name="jaxmesh-write-behind", daemon=True)
+        self._thread.start()
+
+    def _work(self):
+        while (job := self._q.get()) is not None:
+            mesh, path, rec, check = job
+            try:
+                if check is not None:
+                    check()
+                self._save(mesh, path, overwrite=self._overwrite)
+            except (ValueError, OSError) as err:
+                rec.update(status="failed", error=f"{type(err).__name__}: {err}")
+            self._log.write(rec)
+
+    def put(self, mesh, path, rec, check=None):
+        """Save ``mesh`` to ``path`` (after ``check()``, which may add errors to ``rec``)."""
+        self._q.put((mesh, path, rec, check))
+
+    def close(self):
+        self._q.put(None)
+        self._thread.join()
