@@ -209,6 +209,21 @@ def write_dataset(folder, count=7):
     return paths
 
 
+def write_pairs(tmp_path, count):
+    """``count`` clean meshes in clean/ and their noisy copies (σ = 0.3 ℓ̄) under the
+    same names in in/."""
+    (tmp_path / "clean").mkdir()
+    (tmp_path / "in").mkdir()
+    names = []
+    for i in range(count):
+        s = trimesh.creation.icosphere(subdivisions=1)
+        clean = jaxmesh.Mesh.from_arrays(s.vertices * (1 + i), s.faces)
+        jaxmesh.save(clean, str(tmp_path / "clean" / f"p{i}.ply"))
+        jaxmesh.save(jaxmesh.add_noise(clean, 0.3, i), str(tmp_path / "in" / f"p{i}.ply"))
+        names.append(f"p{i}.ply")
+    return names
+
+
 def viewer_config(page: str) -> dict:
     """The JSON data a `jaxmesh view` page embeds."""
     m = re.search(r'<script type="application/json" id="data">(.*?)</script>', page, re.S)

@@ -12,7 +12,7 @@ import pytest
 import jaxmesh
 from jaxmesh.dataset import LADDER_RATIO, denoise_files, expand_inputs, plan_batches, rung
 from jaxmesh.denoise import denoise_in_unit_frame
-from conftest import write_dataset
+from conftest import write_dataset, write_pairs
 
 
 def test_rung_is_the_least_ladder_size_above():
@@ -125,3 +125,50 @@ def test_lam_auto_tunes_each_mesh_as_tune_does(tmp_path):
         assert rec["params"]["lam"] == pytest.approx(float(want.params["lam"]), rel=1e-6)
         np.testing.assert_allclose(jaxmesh.load(str(tmp_path / "out" / p.name)).vertices, want.mesh.vertices,
                                    atol=1e-9)
+
+
+
+def test_references_and_one_setting_tuned_on_a_subset(tmp_path):
+    """``tune_on=2`` with references: λ tuned once (tune_shared, supervised) on the
+    first two inputs and applied to all; every report line has the errors before and
+    after against its clean twin, or says why it has none."""
+    from jaxmesh.metrics import error_summary
+    from jaxmesh.tune import tune_shared
+
+    names = write_pairs(tmp_path, 3)
+    (tmp_path / "clean" / names[2]).unlink()                       # one input without a reference
+    s = denoise_files([str(tmp_path / "in")], tmp_path / "out", "kernel", {"lam": "auto", "iterations": 2},
+                      batch_size=2, reference=tmp_path / "clean", tune_on=2)
+    assert (s.done, s.failed) == (3, 0)
+    load = lambda *p: jaxmesh.load(str(tmp_path.joinpath(*p)))   # noqa: E731
+    want = tune_shared([load("in", n) for n in names[:2]], [load("clean", n) for n in names[:2]], "kernel",
+                       names=["lam"], iterations=2)
+    lam = float(want.params["lam"])
+    records = sorted(s.records, key=lambda r: r["input"])
+    for name, rec in zip(names, records):
+        assert rec["tuned_on"]["supervised"] and [p.split("/")[-1] for p in rec["tuned_on"]["files"]] == names[:2]
+        assert rec["params"] == {"lam": pytest.approx(lam, rel=1e-12), "iterations": 2}
+        out = load("out", name)
+        np.testing.assert_allclose(out.vertices, denoise_in_unit_frame(load("in", name), "kernel", lam=lam,
+                                                                       iterations=2).vertices, atol=1e-12)
+        if name == names[2]:
+            assert "before" not in rec and "no clean mesh named p2.*" in rec["reference_error"]
+            continue
+        assert rec["before"] == pytest.approx(error_summary(load("clean", name), load("in", name)), rel=1e-12)
+        assert rec["after"] == pytest.approx(error_summary(load("clean", name), out), rel=1e-12)
+        assert rec["after"]["normal_angle_deg"] < rec["before"]["normal_angle_deg"]
+
+
+def test_reference_and_tune_on_refusals(tmp_path):
+    names = write_pairs(tmp_path, 2)
+    run = lambda params, **kw: denoise_files([str(tmp_path / "in")], tmp_path / "out", "taubin", params, **kw)  # noqa: E731
+    with pytest.raises(ValueError, match="is not a folder"):
+        run({}, reference=tmp_path / "nowhere")
+    with pytest.raises(ValueError, match="no parameter is 'auto'"):
+        run({"lam": 0.5}, tune_on=2)
+    with pytest.raises(ValueError, match="tune_on must be an integer"):
+        run({"lam": "auto"}, tune_on=-1)
+    (tmp_path / "clean" / names[1]).unlink()
+    with pytest.raises(ValueError, match=f"no clean mesh in .* for .*{names[1]}"):
+        run({"lam": "auto"}, tune_on=2, reference=tmp_path / "clean")
+    assert not (tmp_path / "out").exists()

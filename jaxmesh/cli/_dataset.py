@@ -5,6 +5,7 @@ bucket shape, resumable, failures reported and skipped)."""
 from __future__ import annotations
 
 import json
+import math
 import sys
 
 from ._common import CLIError
@@ -21,6 +22,9 @@ def dataset_arguments(p) -> None:
                    help="ratio between padded mesh sizes (--out-dir; larger: fewer compiles, more padding)")
     p.add_argument("--report", metavar="FILE", help="append one JSON line per mesh to FILE (--out-dir)")
     p.add_argument("--suffix", metavar=".EXT", help="output format for --out-dir (default: the input's)")
+    p.add_argument("--tune-on", type=int, default=0, metavar="N",
+                   help="with --out-dir and parameters 'auto' (or --tune): tune them once on the first N inputs "
+                        "(against --reference DIR if given, else blind) and apply that setting to every input")
     p.add_argument("--coordinator", metavar="HOST:PORT",
                    help="run as one of --num-processes processes (jax.distributed; --out-dir): each denoises "
                         "its share of the inputs")
@@ -39,11 +43,21 @@ def run_dataset(args, given: dict) -> int:
 
     if args.sample:
         raise CLIError("--out-dir takes mesh files, directories or globs, not --sample")
-    bad = [flag for flag, on in (("--reference", args.reference), ("--tune", args.tune),
-                                 ("--raw-units", args.raw_units), ("--noise-sigma", args.noise_sigma is not None))
+    bad = [flag for flag, on in (("--raw-units", args.raw_units), ("--noise-sigma", args.noise_sigma is not None))
            if on]
     if bad:
-        raise CLIError(f"{', '.join(bad)}: not supported with --out-dir (one setting for every mesh)")
+        raise CLIError(f"{', '.join(bad)}: not supported with --out-dir (each mesh in its unit frame, σ "
+                       "estimated per mesh)")
+    if args.tune:
+        if args.method == "auto":
+            raise CLIError("--tune needs a named method (--method NAME); --method auto chooses its own parameters")
+        from ..denoise import as_method
+
+        given = {**given, **{n: "auto" for n, q in as_method(args.method).params.items()
+                             if q.kind == "continuous" and n not in given}}
+    if args.tune_on and "auto" not in given.values():
+        raise CLIError("--tune-on N tunes the parameters given as 'auto' (--lam auto) or all of them (--tune); "
+                       "name some")
     if not args.paths:
         raise CLIError("--out-dir needs at least one input (file, directory or glob)")
     cluster = (args.coordinator, args.num_processes, args.process_id)
@@ -56,16 +70,40 @@ def run_dataset(args, given: dict) -> int:
 
         jax.distributed.initialize(args.coordinator, args.num_processes, args.process_id)
     summary = denoise_files(args.paths, args.out_dir, args.method, given, batch_size=args.batch_size,
-                            ladder=args.ladder, overwrite=args.force, suffix=args.suffix, report=args.report, progress=_progress)
+                            ladder=args.ladder, overwrite=args.force, suffix=args.suffix, report=args.report, progress=_progress,
+                            reference=args.reference, tune_on=args.tune_on)
     for rec in summary.records:
         if rec["status"] == "failed":
             where = "" if rec["input"] in rec["error"] else f"{rec['input']}: "
             print(f"jaxmesh: error: {where}{rec['error']}", file=sys.stderr)
+        elif "reference_error" in rec:
+            print(f"jaxmesh: warning: {rec['input']}: {rec['reference_error']}", file=sys.stderr)
     s = summary.as_dict()
+    scored = [r for r in summary.records if "after" in r]
+    if scored:
+        # E is in each file's units: its mean over meshes means nothing, its ratio does
+        ratios = [r["after"]["visual_error"] / r["before"]["visual_error"] for r in scored
+                  if r["before"]["visual_error"] > 0]
+        s["mean_errors"] = {"meshes": len(scored), "normal_angle_deg": {
+            when: sum(r[when]["normal_angle_deg"] for r in scored) / len(scored) for when in ("before", "after")},
+            "visual_error_ratio_geomean": math.exp(sum(map(math.log, ratios)) / len(ratios)) if ratios else None}
+    tuned_on = next((r["tuned_on"] for r in summary.records if "tuned_on" in r), None)
+    if tuned_on is not None:
+        s["tuned_on"] = {**tuned_on, "params": next(r["params"] for r in summary.records if "params" in r)}
     if args.json:
         print(json.dumps(s))
-    else:
-        print(f"{s['done']} written, {s['skipped']} skipped (exist), {s['failed']} failed -> {args.out_dir}; "
-              f"{s['compiles']} compiled batch shapes, padding waste {100 * s['padding_waste']:.0f}%, "
-              f"{s['seconds']:.2f} s")
+        return 1 if summary.failed else 0
+    if tuned_on is not None:
+        print(f"tuned on {len(tuned_on['files'])} inputs ({'supervised' if tuned_on['supervised'] else 'blind'}): "
+              + ", ".join(f"{k} = {v:.6g}" if isinstance(v, float) else f"{k} = {v}"
+                          for k, v in s["tuned_on"]["params"].items()))
+    print(f"{s['done']} written, {s['skipped']} skipped (exist), {s['failed']} failed -> {args.out_dir}; "
+          f"{s['compiles']} compiled batch shapes, padding waste {100 * s['padding_waste']:.0f}%, "
+          f"{s['seconds']:.2f} s")
+    if scored:
+        e = s["mean_errors"]
+        ratio = e["visual_error_ratio_geomean"]
+        print(f"against {args.reference} ({len(scored)} meshes): mean normal error {e['normal_angle_deg']['before']:.2f}° "
+              f"-> {e['normal_angle_deg']['after']:.2f}°"
+              + ("" if ratio is None else f"; visual error after / before {ratio:.3g} (geometric mean)"))
     return 1 if summary.failed else 0

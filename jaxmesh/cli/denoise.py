@@ -30,7 +30,9 @@ def configure(p) -> None:
                         "blind, by a recorrupted estimate of the normal error (see --list-methods)")
     p.add_argument("--list-methods", action="store_true", help="list methods and their parameters, then exit")
     add_parameter_flags(p)
-    p.add_argument("--reference", metavar="CLEAN", help="clean mesh (same connectivity): print the errors")
+    p.add_argument("--reference", metavar="CLEAN",
+                   help="clean mesh (same connectivity): print the errors; with --out-dir, a folder of clean "
+                        "meshes named like the inputs (errors per mesh in --report; training set of --tune-on)")
     p.add_argument("--raw-units", action="store_true",
                    help="run in the file's units (default: scaled to a unit bounding-box diagonal and "
                         "back, so that kernel λ means the same for every mesh)")

@@ -11,7 +11,7 @@ import pytest
 
 import jaxmesh
 from jaxmesh.cli import main
-from conftest import shared_mesh_path, write_dataset
+from conftest import shared_mesh_path, write_dataset, write_pairs
 
 
 def test_noise_then_denoise_with_reference(capsys, tmp_path):
@@ -164,9 +164,45 @@ def test_a_corrupt_file_is_reported_and_skipped_and_the_exit_status_says_so(tmp_
 
 
 def test_out_dir_refuses_what_it_cannot_do(tmp_path, capsys):
-    assert main(["denoise", "--out-dir", str(tmp_path / "o"), str(tmp_path), "--method", "kernel", "--tune"]) == 1
-    assert "not supported with --out-dir" in capsys.readouterr().err
+    for flags, message in ((["--method", "kernel", "--raw-units"], "not supported with --out-dir"),
+                           (["--method", "kernel", "--tune-on", "2"], "--tune-on N tunes the parameters given"),
+                           (["--tune"], "--tune needs a named method")):
+        assert main(["denoise", "--out-dir", str(tmp_path / "o"), str(tmp_path)] + flags) == 1
+        assert message in capsys.readouterr().err, flags
     assert not (tmp_path / "o").exists()
+
+
+def test_out_dir_with_references_and_one_setting_tuned_on_a_subset(tmp_path, capsys):
+    """--reference DIR: errors per mesh in the report and their means on stdout;
+    --tune-on 1: λ tuned once, against the first input's reference, for all."""
+    names = write_pairs(tmp_path, 2)
+    report = tmp_path / "r.jsonl"
+    rc = main(["denoise", "--out-dir", str(tmp_path / "out"), str(tmp_path / "in"), "--method", "kernel",
+               "--iterations", "2", "--lam", "auto", "--tune-on", "1", "--reference", str(tmp_path / "clean"),
+               "--report", str(report)])
+    out = capsys.readouterr().out
+    lines = sorted((json.loads(line) for line in report.read_text().splitlines()), key=lambda r: r["input"])
+    assert rc == 0 and [r["status"] for r in lines] == ["ok", "ok"]
+    lam = lines[0]["params"]["lam"]
+    assert lines[1]["params"]["lam"] == lam and lines[0]["tuned_on"]["files"] == [str(tmp_path / "in" / names[0])]
+    assert f"tuned on 1 inputs (supervised): iterations = 2, lam = {lam:.6g}\n" in out
+    before = np.mean([r["before"]["normal_angle_deg"] for r in lines])
+    after = np.mean([r["after"]["normal_angle_deg"] for r in lines])
+    ratio = np.exp(np.mean([np.log(r["after"]["visual_error"] / r["before"]["visual_error"]) for r in lines]))
+    assert after < before and ratio < 1
+    assert f"(2 meshes): mean normal error {before:.2f}° -> {after:.2f}°; visual error after / before {ratio:.3g}" in out
+
+
+@pytest.mark.slow   # compiles the blind shared tuner
+@pytest.mark.filterwarnings("ignore::jaxmesh.tune.BlindTuningWarning")
+def test_out_dir_tune_every_parameter_blind_on_a_subset(tmp_path, capsys):
+    write_pairs(tmp_path, 2)
+    rc = main(["denoise", "--out-dir", str(tmp_path / "out"), str(tmp_path / "in"), "--method", "kernel",
+               "--iterations", "2", "--tune", "--tune-on", "2", "--json"])
+    s = json.loads(capsys.readouterr().out)
+    assert rc == 0 and s["done"] == 2 and "mean_errors" not in s
+    assert s["tuned_on"]["supervised"] is False and len(s["tuned_on"]["files"]) == 2
+    assert 0 < s["tuned_on"]["params"]["lam"] and s["tuned_on"]["params"]["iterations"] == 2
 
 
 @pytest.mark.slow   # three subprocesses, each importing JAX and compiling
