@@ -171,4 +171,7 @@ def test_reference_and_tune_on_refusals(tmp_path):
     (tmp_path / "clean" / names[1]).unlink()
     with pytest.raises(ValueError, match=f"no clean mesh in .* for .*{names[1]}"):
         run({"lam": "auto"}, tune_on=2, reference=tmp_path / "clean")
+    (tmp_path / "in" / names[0]).write_text("ply\nformat ascii 1.0\nelement vertex 9\nend_header\n0 0\n")
+    with pytest.raises(ValueError, match=f"training input .*{names[0]} cannot be read"):
+        run({"lam": "auto"}, tune_on=1)
     assert not (tmp_path / "out").exists()

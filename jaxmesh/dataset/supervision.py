@@ -113,7 +113,12 @@ def tune_on_subset(inputs, count: int, method: str, params: dict, names: list[st
     from ..tune import tune_shared
 
     files = expand_inputs([str(p) for p in inputs])[:count]
-    noisy = [load(f) for f in files]
+    noisy = []
+    for f in files:
+        try:
+            noisy.append(load(f))
+        except (ValueError, OSError) as err:   # the training set must be whole: refuse, naming the file
+            raise ValueError(f"tune_on: training input {f} cannot be read ({err})") from None
     clean = None
     if folder is not None:
         twins = [reference_path(f, folder) for f in files]
