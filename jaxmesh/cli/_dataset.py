@@ -83,13 +83,13 @@ def run_dataset(args, given: dict) -> int:
     if scored:
         # E is in each file's units: its mean over meshes means nothing, its ratio does
         ratios = [r["after"]["visual_error"] / r["before"]["visual_error"] for r in scored
-                  if r["before"]["visual_error"] > 0]
+                  if r["before"]["visual_error"] > 0 and r["after"]["visual_error"] > 0]
         s["mean_errors"] = {"meshes": len(scored), "normal_angle_deg": {
             when: sum(r[when]["normal_angle_deg"] for r in scored) / len(scored) for when in ("before", "after")},
             "visual_error_ratio_geomean": math.exp(sum(map(math.log, ratios)) / len(ratios)) if ratios else None}
     tuned_on = next((r["tuned_on"] for r in summary.records if "tuned_on" in r), None)
     if tuned_on is not None:
-        s["tuned_on"] = {**tuned_on, "params": next(r["params"] for r in summary.records if "params" in r)}
+        s["tuned_on"] = tuned_on
     if args.json:
         print(json.dumps(s))
         return 1 if summary.failed else 0

@@ -109,7 +109,7 @@ def tune_on_subset(inputs, count: int, method: str, params: dict, names: list[st
 
     Returns:
         (the parameters with each tuned one's value, a description of the training for
-        the report: the files, ``supervised`` and the training loss)."""
+        the report: the files, ``supervised``, the training loss and the parameters)."""
     from ..tune import tune_shared
 
     files = expand_inputs([str(p) for p in inputs])[:count]
@@ -130,4 +130,4 @@ def tune_on_subset(inputs, count: int, method: str, params: dict, names: list[st
     result = tune_shared(noisy, clean, method, names=names, **fixed)
     values = {**fixed, **{n: float(result.params[n]) for n in names}}
     return values, {"files": [str(f) for f in files], "supervised": clean is not None,
-                    "loss": float(result.error)}
+                    "loss": float(result.error), "params": values}
