@@ -118,6 +118,17 @@ def octahedron_arrays():
     return v, f
 
 
+def _split_quads(nx: int, ny: int, idx) -> np.ndarray:
+    """Two triangles (a, b, c), (a, c, d) per quad (i, j) of an nx × ny grid whose
+    corner (i, j) is vertex ``idx(i, j)``."""
+    f = []
+    for i in range(nx):
+        for j in range(ny):
+            a, b, c, d = idx(i, j), idx(i + 1, j), idx(i + 1, j + 1), idx(i, j + 1)
+            f += [[a, b, c], [a, c, d]]
+    return np.array(f)
+
+
 def grid_arrays(nx: int = 4, ny: int = 3, jitter: float = 0.0, seed: int = 0):
     """Open (nx+1) x (ny+1) grid in the z = 0 plane, two triangles per cell."""
     xs, ys = np.meshgrid(np.arange(nx + 1, dtype=float), np.arange(ny + 1, dtype=float), indexing="ij")
@@ -125,13 +136,7 @@ def grid_arrays(nx: int = 4, ny: int = 3, jitter: float = 0.0, seed: int = 0):
     if jitter:
         rng = np.random.default_rng(seed)
         v = v + jitter * rng.standard_normal(v.shape)
-    idx = lambda i, j: i * (ny + 1) + j  # noqa: E731
-    f = []
-    for i in range(nx):
-        for j in range(ny):
-            a, b, c, d = idx(i, j), idx(i + 1, j), idx(i + 1, j + 1), idx(i, j + 1)
-            f += [[a, b, c], [a, c, d]]
-    return v, np.array(f)
+    return v, _split_quads(nx, ny, lambda i, j: i * (ny + 1) + j)
 
 
 @pytest.fixture
@@ -170,13 +175,7 @@ def torus_arrays(n: int = 8, m: int = 6, big: float = 2.0, small: float = 0.7):
     u, w = np.meshgrid(np.arange(n) * 2 * np.pi / n, np.arange(m) * 2 * np.pi / m, indexing="ij")
     v = np.stack([(big + small * np.cos(w)) * np.cos(u), (big + small * np.cos(w)) * np.sin(u),
                   small * np.sin(w)], -1).reshape(-1, 3)
-    idx = lambda i, j: (i % n) * m + (j % m)  # noqa: E731
-    f = []
-    for i in range(n):
-        for j in range(m):
-            a, b, c, d = idx(i, j), idx(i + 1, j), idx(i + 1, j + 1), idx(i, j + 1)
-            f += [[a, b, c], [a, c, d]]
-    return v, np.array(f)
+    return v, _split_quads(n, m, lambda i, j: (i % n) * m + (j % m))
 
 
 def loop_cotangent_matrix(v, f):
