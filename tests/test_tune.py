@@ -67,6 +67,31 @@ def test_tuner_reaches_the_dense_grid_optimum(spot_pair):
     assert h[-1] <= float(np.min(np.asarray(res.grid_loss)))
 
 
+def test_search_finds_a_minimum_next_to_a_divergence_cliff():
+    """A loss that grows by orders of magnitude across the grid, as Taubin's with λ
+    below |μ| does: a parabola fitted to the loss itself started half a cell from the
+    best grid point with a 10⁴× curvature, and BFGS stopped there (λ = 0.464 where
+    the minimum is 0.5; found on spot).  The start is fitted to log E now."""
+    import types
+
+    from jaxmesh.tune.search import search
+    from jaxmesh.tune.space import Coordinate
+
+    coord = Coordinate("lam", 0.01, 1.0, True)
+
+    def loss_of(lam):
+        return 0.26 + 20 * (lam - 0.5) ** 2 + jnp.exp(60 * (0.3 - lam))
+
+    cfg = types.SimpleNamespace(coords=(coord,), grid=6, max_steps=20, rtol=1e-2, atol=1e-2)  # TuneOptions defaults
+    out = jax.jit(lambda: search(lambda u: loss_of(coord.value(u[..., 0])), cfg, jnp.float64, 100))()
+    fine = np.linspace(0.3, 0.8, 50001)
+    best = fine[np.argmin(np.asarray(loss_of(fine)))]
+    grid = np.asarray(out["grid_loss"])
+    assert grid.max() / grid.min() > 1e6          # the cliff is in the grid
+    assert abs(float(coord.value(out["u"][0])) - best) < 2e-3
+    assert bool(out["converged"])
+
+
 def test_two_parameters_and_the_iteration_count(spot_pair):
     clean, noisy = spot_pair
     default = relative_error("visual", clean, noisy, METHODS["taubin"](noisy))

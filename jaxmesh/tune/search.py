@@ -31,8 +31,15 @@ def parabola_start(values, t, p: int):
     """Per-coordinate parabola through the best grid point and its neighbours:
     (u₀ (p,), curvature h in u (p,)).  values has shape (n,)*p.
 
+    The parabola is fitted to log E, not E: next to an unstable setting (a
+    Taubin λ below |μ|) the loss grows by orders of magnitude from one grid
+    point to the next, and a parabola in E then puts its vertex half a cell
+    from the best point with a curvature 10⁴× too large, which stops BFGS at
+    once.  In log E that growth is close to quadratic; at the vertex
+    d²E/du² = E · d²(log E)/du², since the slope vanishes there.
+
     Arguments:
-        values: the grid losses, (n,)*p.
+        values: the grid losses, (n,)*p (positive).
         t: the grid midpoints, (n,).
         p: the number of coordinates.
 
@@ -40,6 +47,7 @@ def parabola_start(values, t, p: int):
         (u₀ (p,), curvature h (p,))."""
     n = t.shape[0]
     best = jnp.unravel_index(jnp.argmin(values), values.shape)
+    log_values = jnp.log(jnp.maximum(values, jnp.finfo(values.dtype).tiny))
     u0, curv = [], []
     for a in range(p):
         c = jnp.clip(best[a], 1, n - 2)
@@ -47,7 +55,7 @@ def parabola_start(values, t, p: int):
         e = []
         for k in (c - 1, c, c + 1):
             idx[a] = k
-            e.append(values[tuple(idx)])
+            e.append(log_values[tuple(idx)])
         e0, e1, e2 = e
         h = t[1] - t[0]
         second = e0 - 2 * e1 + e2
@@ -55,7 +63,9 @@ def parabola_start(values, t, p: int):
         shift = 0.5 * h * (e0 - e2) / jnp.where(convex, second, 1)
         ts = jnp.where(convex, jnp.clip(t[c] + shift, t[c] - h, t[c] + h), t[best[a]])
         e_tt = jnp.where(convex, second / h**2, 0)
-        h_u = e_tt * (ts * (1 - ts)) ** 2               # d²E/du² at the vertex (E_t = 0 there)
+        delta = ts - t[c]
+        vertex = jnp.exp(e1 + 0.5 * (e2 - e0) / h * delta + 0.5 * e_tt * delta**2)   # E at the vertex
+        h_u = vertex * e_tt * (ts * (1 - ts)) ** 2       # d²E/du² at the vertex (E_t = 0 there)
         u0.append(jnp.log(ts) - jnp.log1p(-ts))
         curv.append(jnp.where(convex, jnp.clip(h_u, 1e-4, 1e4), 1.0))
     return jnp.stack(u0), jnp.stack(curv)
