@@ -1,7 +1,9 @@
 """Reading and writing meshes (OBJ, PLY, OFF, STL).
 
 * OBJ, OFF and STL are read and written by jaxmesh's own strict parsers
-  (:mod:`jaxmesh._meshtext`); PLY is read through trimesh.
+  (:mod:`jaxmesh._meshtext`); binary PLY of the common layout (fixed-size
+  vertex properties, triangles) by numpy (:mod:`jaxmesh._ply`), any other PLY
+  through trimesh.
 * Vertex order is kept exactly (no merging, no reordering, no dropped vertices).
   ``merge_duplicates=True`` merges exactly coincident vertices, keeping the
   first occurrence's position in the order.  STL stores no shared vertices, so
@@ -29,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from . import _meshtext as _text
+from . import _ply
 from .mesh import Mesh, MeshWarning
 
 __all__ = ["load", "save", "MeshFileError", "SUPPORTED_FORMATS", "merge_duplicate_vertices"]
@@ -50,16 +53,21 @@ def _format_of(path: Path, file_type: str | None) -> str:
 
 
 def _read_ply(p: Path):
-    """(vertices, faces, faces declared by the header, None) through trimesh, after
-    checking the header's counts against the file's size."""
-    import trimesh
-
+    """(vertices, faces, faces declared by the header, None), after checking the
+    header's counts against the file's size: the common binary layout by numpy
+    (:mod:`jaxmesh._ply`), anything else through trimesh."""
     try:
-        counts = _text.check_ply_header(p.read_bytes())
+        data = p.read_bytes()
+        counts = _text.check_ply_header(data)
     except OSError as err:
         raise MeshFileError(f"{p}: cannot read ({err.strerror or err})") from err
     except ValueError as err:
         raise MeshFileError(f"{p}: cannot read as PLY: {err}") from err
+    fast = _ply.read_binary(data)
+    if fast is not None:
+        return (*fast, None)
+    import trimesh
+
     try:
         tm = trimesh.load(p, file_type="ply", process=False, maintain_order=True, force="mesh",
                           skip_materials=True)

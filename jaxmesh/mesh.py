@@ -59,7 +59,9 @@ def build_topology(faces: np.ndarray, num_vertices: int) -> dict[str, np.ndarray
     src = np.concatenate([edges[:, 0], edges[:, 1]])
     dst = np.concatenate([edges[:, 1], edges[:, 0]])
     edge_of = np.concatenate([np.arange(num_edges), np.arange(num_edges)])
-    order = np.lexsort((dst, src))
+    # one key per directed edge (all distinct); its first half is sorted already,
+    # which a stable (merge) sort exploits: about 3x faster than lexsort((dst, src))
+    order = np.argsort(src * m + dst, kind="stable")
     degree = np.bincount(src, minlength=m)
     as32 = lambda x: np.ascontiguousarray(x, dtype=np.int32)  # noqa: E731
     return {
@@ -72,10 +74,14 @@ def build_topology(faces: np.ndarray, num_vertices: int) -> dict[str, np.ndarray
     }
 
 
-def to_device(a: np.ndarray, dtype=None) -> Array:
-    """A host array on the default device, its dtype canonicalised (x64 setting).
+def to_device(a: np.ndarray | dict[str, np.ndarray], dtype=None) -> Array | dict[str, Array]:
+    """A host array (or a dict of them, moved in one call) on the default device,
+    its dtype canonicalised (x64 setting).
     ``jax.device_put``, not ``jnp.asarray``: in JAX 0.10 the latter compiles a
     small program for every new shape, i.e. several per mesh size loaded."""
+    if isinstance(a, dict):
+        return jax.device_put({k: np.asarray(x, dtype=jax.dtypes.canonicalize_dtype(x.dtype))
+                               for k, x in a.items()})
     target = jax.dtypes.canonicalize_dtype(a.dtype if dtype is None else dtype)
     if dtype is not None and np.dtype(dtype) != target:
         warnings.warn(f"dtype {np.dtype(dtype)} is not available without jax_enable_x64; using {target}",
@@ -154,11 +160,11 @@ def zero_area_faces(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """
     dt = np.asarray(vertices).dtype
     eps = np.finfo(dt if np.issubdtype(dt, np.floating) else np.float64).eps
-    v = np.asarray(vertices, dtype=np.float64)
-    a, b, c = (v[faces[:, k]] for k in range(3))
-    e1, e2 = b - a, c - a
-    cross = np.linalg.norm(np.cross(e1, e2), axis=1)
-    scale = (e1 * e1).sum(1) + (e2 * e2).sum(1)
+    corners = np.asarray(vertices, dtype=np.float64)[faces]
+    e1, e2 = corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]
+    n = np.cross(e1, e2)
+    cross = np.sqrt(np.einsum("ij,ij->i", n, n))
+    scale = np.einsum("ij,ij->i", e1, e1) + np.einsum("ij,ij->i", e2, e2)
     return cross <= eps * scale
 
 
@@ -234,8 +240,7 @@ class Mesh(eqx.Module):
             raise ValueError(
                 f"vertex {i} {v[i].tolist()} does not fit in {target} (largest {float(jnp.finfo(target).max):.3g}); "
                 "enable 64-bit floats (jax.config.update('jax_enable_x64', True)) or rescale the mesh")
-        return cls(vertices=to_device(v, dtype), faces=to_device(f),
-                   **{k: to_device(a) for k, a in topo.items()})
+        return cls(vertices=to_device(v, dtype), **to_device({"faces": f, **topo}))
 
     # ------------------------------------------------------------------ counts
     @property

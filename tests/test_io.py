@@ -119,3 +119,97 @@ def test_merge_duplicates_on_a_real_defect_mesh():
     v = np.asarray(raw.vertices)
     _, first = np.unique(v, axis=0, return_index=True)
     np.testing.assert_array_equal(np.asarray(merged.vertices), v[np.sort(first)])
+
+
+def _binary_ply(vertices, faces, order="<", vertex_props=(("float", "x"), ("float", "y"), ("float", "z")),
+                face_before=(), face_after=(), count="uchar", index="int", list_name="vertex_indices",
+                before=None, after=None):
+    """A binary PLY of any layout, written field by field (independent of both readers)."""
+    types = {"uchar": "u1", "char": "i1", "ushort": "u2", "short": "i2", "int": "i4", "uint": "u4",
+             "float": "f4", "double": "f8"}
+    lines = ["ply", f"format binary_{'little' if order == '<' else 'big'}_endian 1.0", "comment test"]
+    body = b""
+    elements = ([before] if before else []) + ["vertex", "face"] + ([after] if after else [])
+    rng = np.random.default_rng(0)
+    for el in elements:
+        if el == "vertex":
+            lines.append(f"element vertex {len(vertices)}")
+            lines += [f"property {t} {n}" for t, n in vertex_props]
+            dt = np.dtype([(n, order + types[t]) for t, n in vertex_props])
+            rec = np.zeros(len(vertices), dt)
+            for k, n in enumerate("xyz"):
+                rec[n] = vertices[:, k]
+            for t, n in vertex_props:
+                if n not in "xyz":
+                    rec[n] = rng.integers(0, 100, len(vertices))
+        elif el == "face":
+            lines.append(f"element face {len(faces)}")
+            lines += [f"property {t} {n}" for t, n in face_before]
+            lines.append(f"property list {count} {index} {list_name}")
+            lines += [f"property {t} {n}" for t, n in face_after]
+            dt = np.dtype([(n, order + types[t]) for t, n in face_before] + [("n", order + types[count]),
+                          ("i", order + types[index], (3,))] + [(n, order + types[t]) for t, n in face_after])
+            rec = np.zeros(len(faces), dt)
+            rec["n"], rec["i"] = 3, faces
+        else:
+            name, n = el
+            lines += [f"element {name} {n}", "property int a", "property uchar b"]
+            rec = np.zeros(n, np.dtype([("a", order + "i4"), ("b", "u1")]))
+        body += rec.tobytes()
+    return ("\n".join(lines) + "\nend_header\n").encode() + body
+
+
+@pytest.mark.parametrize("layout", [
+    {},
+    {"order": ">"},
+    {"vertex_props": (("double", "x"), ("double", "y"), ("double", "z"), ("float", "nx"), ("uchar", "red"))},
+    {"vertex_props": (("uchar", "red"), ("float", "z"), ("float", "x"), ("float", "y"))},
+    {"count": "uint", "index": "uint", "list_name": "vertex_index"},
+    {"count": "uchar", "index": "ushort", "face_before": (("int", "tag"),), "face_after": (("uchar", "alpha"),)},
+    {"before": ("camera", 2), "after": ("edge", 5), "order": ">"},
+])
+def test_binary_ply_layouts_read_as_trimesh_reads_them(tmp_path, spot, layout):
+    """The numpy fast path (:mod:`jaxmesh._ply`) on every common binary layout equals
+    trimesh's general reader, and jaxmesh.load takes the fast path for it."""
+    import trimesh
+
+    from jaxmesh import _ply
+
+    v = np.asarray(spot.vertices, np.float64) * 3 - 1
+    f = np.asarray(spot.faces)
+    data = _binary_ply(v, f, **layout)
+    path = tmp_path / "t.ply"
+    path.write_bytes(data)
+    fast = _ply.read_binary(data)
+    assert fast is not None
+    tm = trimesh.load(path, file_type="ply", process=False, maintain_order=True, force="mesh")
+    np.testing.assert_array_equal(fast[0], np.asarray(tm.vertices, np.float64))
+    np.testing.assert_array_equal(fast[1], np.asarray(tm.faces))
+    m = jaxmesh.load(path, dtype=np.float64)
+    np.testing.assert_array_equal(np.asarray(m.vertices), fast[0])
+    np.testing.assert_array_equal(np.asarray(m.faces), fast[1])
+
+
+def test_other_ply_layouts_fall_back_to_the_general_reader(tmp_path):
+    """Polygons, ASCII and two lists per face are not the fast layout: read_binary
+    declines them (None) and load still reads them through trimesh."""
+    from jaxmesh import _ply
+
+    v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
+    quad = (b"ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty double x\nproperty double y\n"
+            b"property double z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+            + v.tobytes() + bytes([4]) + np.arange(4, dtype="<i4").tobytes())
+    tri = _binary_ply(v, np.array([[0, 1, 2], [0, 2, 3]]))
+    two_lists = tri.replace(b"property list uchar int vertex_indices\n",
+                            b"property list uchar int vertex_indices\nproperty list uchar float texcoord\n")
+    ascii_ply = (b"ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+                 b"element face 2\nproperty list uchar int vertex_indices\nend_header\n"
+                 b"0 0 0\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2\n3 0 2 3\n")
+    for data in (quad, two_lists, ascii_ply):
+        assert _ply.read_binary(data) is None
+    (tmp_path / "q.ply").write_bytes(quad)
+    with pytest.warns(MeshWarning, match="polygons"):
+        m = jaxmesh.load(tmp_path / "q.ply")
+    assert m.num_faces == 2
+    (tmp_path / "a.ply").write_bytes(ascii_ply)
+    assert jaxmesh.load(tmp_path / "a.ply").num_faces == 2
