@@ -1,7 +1,7 @@
 """A dataset of distinct meshes through the dataset runner, a loop of single
 jaxmesh calls, and a loop of Open3D's Laplacian filter, in one run.
 
-    .venv/bin/python benchmarks/bench_dataset.py [--count 200] [--data DIR] [--batch-size 16]
+    .venv/bin/python benchmarks/bench_dataset.py [--count 200] [--data DIR] [--batch-size N] [--ladder R]
 
 **The dataset** (made once, kept in --data): ``--count`` distinct meshes of
 1k–60k vertices from the shared meshes (../shared/meshes), each a source
@@ -16,11 +16,19 @@ from and written to disk:
   per bucket shape, read-ahead and write-behind threads);
 * *loop*: for each file ``load`` → :func:`~jaxmesh.denoise.denoise_in_unit_frame`
   (``umbrella_flow``) → ``save``: one compile per distinct mesh size;
+* *runner-previous*: the runner with the defaults before Session 13 (batches
+  of 16, ladder 2^¼);
+* *runner-xla-defaults*: the runner with XLA's own CPU compiler settings (the
+  other jaxmesh variants run as the ``jaxmesh`` command does, with
+  :func:`jaxmesh.compiler.prefer_fast_cpu_compiles`);
 * *open3d*: ``read_triangle_mesh`` → ``filter_smooth_laplacian(10, 0.5)`` →
   ``write_triangle_mesh``.
 
-Each runs in a fresh subprocess (its peak RSS is its own); compile counts and
-times come from JAX's compile events.  Prints meshes per second and the ratios.
+Each runs in a fresh subprocess (its peak RSS is its own), after ``os.sync()``
+(so the previous variant's writes are not flushed during this one), ``--repeat``
+times interleaved (the loop once); compile counts and times come from JAX's
+compile events.  Prints every run, the medians and their ratios (Open3D's time
+alone varied from 8.5 to 18.4 s between runs on this machine).
 Not part of the test suite: compare ratios, not seconds.
 """
 
@@ -28,6 +36,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import resource
 import subprocess
 import sys
@@ -102,6 +111,9 @@ def run_variant(name: str, data: Path, out: Path, batch_size: int, ladder: float
             m = m.filter_smooth_laplacian(number_of_iterations=ITERATIONS, lambda_filter=LAM)
             o3d.io.write_triangle_mesh(str(out / p.name), m)
     else:
+        from jaxmesh.compiler import prefer_fast_cpu_compiles
+
+        extra["xla_flag"] = False if name.endswith("-xla-defaults") else prefer_fast_cpu_compiles()
         import jax
 
         jax.config.update("jax_enable_x64", True)
@@ -111,10 +123,13 @@ def run_variant(name: str, data: Path, out: Path, batch_size: int, ladder: float
         from jaxmesh.denoise import denoise_in_unit_frame
 
         start = time.perf_counter()
-        if name == "runner":
+        if name.startswith("runner"):
+            if name == "runner-previous":      # the defaults before Session 13: batches of 16, ladder 2^¼
+                batch_size, ladder = 16, 2 ** 0.25
             s = denoise_files([str(data)], out, "umbrella_flow", {"iterations": ITERATIONS, "lam": LAM},
                               batch_size=batch_size, ladder=ladder, overwrite=True)
-            extra = {"padding_waste": round(s.waste, 3), "failed": s.failed, "batch_shapes": s.compiles}
+            extra |= {"batch_size": batch_size or "default", "ladder": round(ladder, 4),
+                      "padding_waste": round(s.waste, 3), "failed": s.failed, "batch_shapes": s.compiles}
         else:
             for p in files:
                 m = denoise_in_unit_frame(jaxmesh.load(str(p)), "umbrella_flow", iterations=ITERATIONS, lam=LAM)
@@ -138,9 +153,11 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--count", type=int, default=200)
     ap.add_argument("--data", type=Path, default=Path(tempfile.gettempdir()) / "jaxmesh-bench-dataset")
-    ap.add_argument("--batch-size", type=int, default=16)
-    ap.add_argument("--ladder", type=float, default=2 ** 0.25, help="ratio between padded sizes (the runner)")
-    ap.add_argument("--variants", nargs="*", default=["runner", "loop", "open3d"])
+    ap.add_argument("--batch-size", type=int, default=None, help="meshes per call (default: the runner's own)")
+    ap.add_argument("--ladder", type=float, default=2 ** 0.5, help="ratio between padded sizes (the runner's default)")
+    ap.add_argument("--variants", nargs="*",
+                    default=["runner", "runner-previous", "runner-xla-defaults", "loop", "open3d"])
+    ap.add_argument("--repeat", type=int, default=3, help="runs of each fast variant, interleaved (medians)")
     ap.add_argument("--variant", help=argparse.SUPPRESS)
     args = ap.parse_args()
     data = args.data / f"in{args.count}"
@@ -157,22 +174,29 @@ def main() -> None:
         sizes.append(int(head.split("element vertex ")[1].split()[0]))
     print(f"dataset: {len(paths)} meshes, {min(sizes)}–{max(sizes)} vertices (median {int(np.median(sizes))}), "
           f"{len(set(sizes))} distinct sizes; made/checked in {time.perf_counter() - t:.0f} s", flush=True)
-    rows = {}
-    for name in args.variants:
-        cmd = [sys.executable, __file__, "--variant", name, "--count", str(args.count), "--data", str(args.data),
-               "--batch-size", str(args.batch_size), "--ladder", str(args.ladder)]
-        res = subprocess.run(cmd, capture_output=True, text=True)
-        if res.returncode:
-            print(f"{name}: failed\n{res.stderr[-2000:]}")
-            continue
-        rows[name] = json.loads(res.stdout.strip().splitlines()[-1])
-        print(json.dumps(rows[name]), flush=True)
-    if "runner" in rows:
-        r = rows["runner"]["meshes_per_second"]
-        for peer in ("loop", "open3d"):
-            if peer in rows:
-                print(f"runner / {peer}: {r / rows[peer]['meshes_per_second']:.2f}x meshes per second")
-
+    rows: dict[str, list[dict]] = {}
+    for rep in range(args.repeat):      # interleaved repeats; the slow loop runs once
+        for name in args.variants:
+            if rep and name == "loop":
+                continue
+            os.sync()                   # the previous variant's 200 written files do not land in this one
+            cmd = [sys.executable, __file__, "--variant", name, "--count", str(args.count), "--data",
+                   str(args.data), "--ladder", str(args.ladder)]
+            cmd += [] if args.batch_size is None else ["--batch-size", str(args.batch_size)]
+            res = subprocess.run(cmd, capture_output=True, text=True)
+            if res.returncode:
+                print(f"{name}: failed\n{res.stderr[-2000:]}")
+                continue
+            rows.setdefault(name, []).append(json.loads(res.stdout.strip().splitlines()[-1]))
+            print(json.dumps(rows[name][-1]), flush=True)
+    median = {name: float(np.median([r["meshes_per_second"] for r in runs])) for name, runs in rows.items()}
+    for name, runs in rows.items():
+        rates = sorted(r["meshes_per_second"] for r in runs)
+        print(f"{name}: median {median[name]:.2f} meshes/s over {len(runs)} run(s) (range {rates[0]}–{rates[-1]})")
+    if "runner" in median:
+        for peer in ("runner-previous", "runner-xla-defaults", "loop", "open3d"):
+            if peer in median:
+                print(f"runner / {peer}: {median['runner'] / median[peer]:.2f}x meshes per second (medians)")
 
 if __name__ == "__main__":
     main()

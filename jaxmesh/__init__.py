@@ -30,7 +30,7 @@ from .transforms import normalize
 __version__ = "0.1.0"
 
 #: subpackages imported on first attribute access (PEP 562)
-_LAZY = ("batch", "compress", "data", "dataset", "denoise", "geodesics", "hash", "intrinsic", "linalg", "metrics",
+_LAZY = ("batch", "compiler", "compress", "data", "dataset", "denoise", "geodesics", "hash", "intrinsic", "linalg", "metrics",
          "operators", "sparse", "spectral", "stats", "tune", "vf")
 
 

@@ -18,9 +18,10 @@ from conftest import write_dataset, write_pairs
 def test_rung_is_the_least_ladder_size_above():
     sizes = [rung(n) for n in range(1, 5000)]
     assert all(s >= n for n, s in zip(range(1, 5000), sizes))
-    assert sizes == sorted(sizes) and rung(64) == 64 and rung(65) == 77
+    assert LADDER_RATIO == 2 ** 0.5 and rung(64, 2 ** 0.25) == 64 and rung(65, 2 ** 0.25) == 77
+    assert sizes == sorted(sizes) and rung(64) == 64 and rung(65) == 91       # ⌈64 √2⌉
     assert all(s <= max(64, LADDER_RATIO * n + 1) for n, s in zip(range(1, 5000), sizes))
-    assert len(set(sizes)) == 1 + int(np.ceil(4 * np.log2(5000 / 64)))   # 27 shapes for 1 to 5000 vertices
+    assert len(set(sizes)) == 1 + int(np.ceil(2 * np.log2(5000 / 64)))   # 14 shapes for 1 to 5000 vertices
 
 
 def test_plan_covers_every_mesh_once_and_buckets_share_a_shape():
@@ -57,6 +58,25 @@ def test_outputs_equal_per_mesh_calls(tmp_path, method, params):
         np.testing.assert_array_equal(got.faces, want.faces)
     if method != "bilateral_normal":                  # face-graph filters run mesh by mesh
         assert 1 <= s.compiles <= len(paths) and s.waste > 0
+
+
+def test_the_reader_threads_errors_reach_the_consumer():
+    """An unexpected error on the read-ahead thread (here in the padding step) is
+    raised in the loop that consumes it, not left as a hang on an empty queue."""
+    from jaxmesh.dataset.plan import Batch
+    from jaxmesh.dataset.streams import read_ahead
+
+    plan = [Batch((0,), 0, (0, 0, 0)), Batch((1,), 0, (0, 0, 0))]
+
+    def prepare(batch, meshes):
+        if batch.items == (1,):
+            raise MemoryError("no room to pad")
+        return "padded"
+
+    got = read_ahead(plan, [("a", "x"), ("b", "y")], lambda path: path.upper(), prepare)
+    assert next(got) == (plan[0], ["A"], "padded")
+    with pytest.raises(MemoryError, match="no room"):
+        next(got)
 
 
 @pytest.mark.filterwarnings("ignore::jaxmesh.mesh.MeshWarning")

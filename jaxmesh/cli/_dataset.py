@@ -17,9 +17,11 @@ def dataset_arguments(p) -> None:
     p.add_argument("--out-dir", metavar="DIR",
                    help="denoise every IN (files, directories of meshes, glob patterns) into DIR, in size "
                         "buckets; outputs that exist are skipped (resume) unless --force")
-    p.add_argument("--batch-size", type=int, default=16, metavar="N", help="meshes per compiled call (--out-dir)")
-    p.add_argument("--ladder", type=float, default=2 ** 0.25, metavar="R",
-                   help="ratio between padded mesh sizes (--out-dir; larger: fewer compiles, more padding)")
+    p.add_argument("--batch-size", type=int, default=None, metavar="N",
+                   help="meshes per compiled call (--out-dir; default 1 on CPU, 16 on GPU/TPU)")
+    p.add_argument("--ladder", type=float, default=2 ** 0.5, metavar="R",
+                   help="ratio between padded mesh sizes (--out-dir; default √2; larger: fewer compiles, "
+                        "more padding)")
     p.add_argument("--report", metavar="FILE", help="append one JSON line per mesh to FILE (--out-dir)")
     p.add_argument("--suffix", metavar=".EXT", help="output format for --out-dir (default: the input's)")
     p.add_argument("--tune-on", type=int, default=0, metavar="N",

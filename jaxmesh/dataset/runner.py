@@ -34,11 +34,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..batch import batch_spec, pad_batch, unpad
-from ..mesh import Mesh
+from ..batch import batch_spec, pad_batch
+from ..mesh import Mesh, to_device
 from . import supervision
 from .streams import Report, Writer, read_ahead
-from .plan import LADDER_RATIO, LADDER_START, MESH_SUFFIXES, Batch, expand_inputs, peek_sizes, plan_batches, rung
+from .plan import (LADDER_RATIO, LADDER_START, MESH_SUFFIXES, Batch, default_batch_size, expand_inputs, peek_sizes,
+                   plan_batches, rung)
 
 __all__ = ["DatasetSummary", "denoise_files"]
 
@@ -155,20 +156,38 @@ class _Tally:
     padded: int = 0
 
 
-def _run_batch(batch: Batch, meshes: list, method: str, params: dict, tally: _Tally, compiled: dict,
-               ladder: float) -> dict:
-    """{item: denoised mesh, (mesh, tuned parameters) or the exception} for one padded batch."""
-    results = {k: mesh for k, mesh in zip(batch.items, meshes) if not isinstance(mesh, Mesh)}
+@dataclasses.dataclass(frozen=True)
+class _Padded:
+    """A batch's readable meshes padded to their shape (built on the reader thread)."""
+
+    good: list
+    shape: tuple
+    padded: Any
+
+
+def _pad_group(batch: Batch, meshes: list, ladder: float) -> _Padded | None:
+    """The readable meshes of ``batch`` (filled to the planned batch size with
+    copies of the first) padded to the planned shape, or the next ladder size
+    where a mesh outgrew its header's estimate; None when none could be read."""
     good = [(k, mesh) for k, mesh in zip(batch.items, meshes) if isinstance(mesh, Mesh)]
     if not good:
-        return results
+        return None
     group = [mesh for _, mesh in good]
     group += [group[0]] * (batch.fill + len(batch.items) - len(good))
     need = (max(m.num_vertices for m in group) + 1, max(m.num_faces for m in group),
             max(m.num_edges for m in group) + 1)     # the plan's sizes were estimates from the headers
     shape = tuple(s if s >= n else rung(n, ladder) for s, n in zip(batch.shape, need))
-    pb = pad_batch(group, shape)
-    tally.programs.add((shape, len(group)))
+    return _Padded(good, shape, pad_batch(group, shape))
+
+
+def _run_batch(batch: Batch, meshes: list, prepared: _Padded | None, method: str, params: dict, tally: _Tally,
+               compiled: dict) -> dict:
+    """{item: denoised mesh, (mesh, tuned parameters) or the exception} for one padded batch."""
+    results = {k: mesh for k, mesh in zip(batch.items, meshes) if not isinstance(mesh, Mesh)}
+    if prepared is None:
+        return results
+    good, shape, pb = prepared.good, prepared.shape, prepared.padded
+    tally.programs.add((shape, pb.mesh.vertices.shape[0]))
     names = _tuned(params)
     if names:
         from ..tune import tune_batch
@@ -183,14 +202,14 @@ def _run_batch(batch: Batch, meshes: list, method: str, params: dict, tally: _Ta
         from ..denoise import METHODS
 
         cont, statics = METHODS[method].split(**params)
-        ahead = compiled.get((shape, len(group)))
+        ahead = compiled.get((shape, pb.mesh.vertices.shape[0]))
         x, bad = ahead.result()(pb.mesh, cont) if ahead is not None else _run_padded(pb.mesh, cont, method, statics)
-        singles, bad = unpad(pb, x), np.asarray(bad)
+        x, bad = np.asarray(x), np.asarray(bad)     # cut on the host: only the positions come back
         for j, (k, mesh) in enumerate(good):
             results[k] = (FloatingPointError(f"{method} diverged on this mesh with {params}") if bad[j]
-                          else mesh.with_vertices(singles[j].vertices))
+                          else mesh.with_vertices(to_device(x[j, :mesh.num_vertices])))
     tally.real += sum(mesh.num_vertices for _, mesh in good)
-    tally.padded += shape[0] * len(group)
+    tally.padded += shape[0] * pb.mesh.vertices.shape[0]
     return results
 
 
@@ -237,7 +256,7 @@ def _run_single(mesh, method: str, params: dict, record: dict):
 
 
 def denoise_files(inputs: Sequence[str | Path], out_dir: str | Path, method: str = "taubin",
-                  params: dict | None = None, *, batch_size: int = 16, ladder: float = LADDER_RATIO,
+                  params: dict | None = None, *, batch_size: int | None = None, ladder: float = LADDER_RATIO,
                   overwrite: bool = False,
                   suffix: str | None = None, report: str | Path | None = None,
                   progress: Callable[[int, int], None] | None = None,
@@ -251,7 +270,8 @@ def denoise_files(inputs: Sequence[str | Path], out_dir: str | Path, method: str
         out_dir: the output folder (same file names).
         method: a registered method (``"auto"`` tunes per mesh).
         params: the method's parameters; a continuous one may be ``"auto"``.
-        batch_size: meshes per compiled call.
+        batch_size: meshes per compiled call (default :func:`~jaxmesh.dataset.plan.default_batch_size`:
+            1 on CPU, 16 on an accelerator).
         ladder: the ratio between padded sizes (larger: fewer compiles, more padding).
         overwrite: redo inputs whose output exists (default: skip them, so an
             interrupted run resumes).
@@ -294,18 +314,15 @@ def denoise_files(inputs: Sequence[str | Path], out_dir: str | Path, method: str
         if "status" in rec:
             log.write(rec)
     batched = method != "auto" and not METHODS[method].aux
-    if batched:
-        plan = plan_batches([records[k]["_sizes"] for k in todo], batch_size, ladder)
-        plan = [dataclasses.replace(b, items=tuple(todo[i] for i in b.items)) for b in plan]
-    else:
-        plan = [Batch((k,), 0, (0, 0, 0)) for k in todo]
+    plan = _plan(records, todo, batch_size, ladder) if batched else [Batch((k,), 0, (0, 0, 0)) for k in todo]
     ahead = batched and not _tuned(params)
     compiled = _precompile(plan, method, params, jnp.result_type(float)) if ahead else {}
     tally, writer, finished = _Tally(), Writer(save, overwrite, log), 0
     try:
-        for batch, meshes in read_ahead(plan, items, load):
+        prepare = functools.partial(_pad_group, ladder=ladder) if batched else None
+        for batch, meshes, prepared in read_ahead(plan, items, load, prepare):
             t0 = time.perf_counter()
-            results = (_run_batch(batch, meshes, method, params, tally, compiled, ladder) if batched
+            results = (_run_batch(batch, meshes, prepared, method, params, tally, compiled) if batched
                        else {batch.items[0]: _run_single(meshes[0], method, params, records[batch.items[0]])})
             seconds = round((time.perf_counter() - t0) / len(batch.items), 4)
             for k, noisy in zip(batch.items, meshes):
@@ -316,6 +333,14 @@ def denoise_files(inputs: Sequence[str | Path], out_dir: str | Path, method: str
     finally:   # what was computed is written, even when interrupted
         writer.close()
     return _summary(records, tally, start)
+
+
+def _plan(records: list, todo: list[int], batch_size: int | None, ladder: float) -> list[Batch]:
+    """The padded batches of the inputs ``todo`` (indices into ``records``, whose
+    ``_sizes`` the first pass filled)."""
+    batch_size = default_batch_size() if batch_size is None else batch_size
+    plan = plan_batches([records[k]["_sizes"] for k in todo], batch_size, ladder)
+    return [dataclasses.replace(b, items=tuple(todo[i] for i in b.items)) for b in plan]
 
 
 def _settle(rec: dict, result, noisy, item: tuple, params: dict, seconds: float, writer: Writer, log: Report,

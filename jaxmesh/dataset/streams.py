@@ -12,32 +12,40 @@ from .plan import Batch
 __all__ = ["read_ahead", "Report", "Writer"]
 
 
-def read_ahead(plan: list[Batch], items, loader):
-    """(batch, its meshes) one batch ahead, read on a thread; a mesh that fails
-    to read comes as its exception.
+def read_ahead(plan: list[Batch], items, loader, prepare=None):
+    """(batch, its meshes, prepared) one batch ahead, read on a thread; a mesh that
+    fails to read comes as its exception.
 
     Arguments:
         plan: the batches, in order.
         items: (input path, output path) per item index.
         loader: the mesh reader (:func:`jaxmesh.load`).
+        prepare: called as ``prepare(batch, meshes)`` on the reader thread too (the
+            runner pads the batch there, overlapping the computation); None: no call.
 
     Returns:
-        A generator of (batch, [mesh or exception per item])."""
+        A generator of (batch, [mesh or exception per item], what ``prepare`` returned or None)."""
     q: queue.Queue = queue.Queue(maxsize=1)
 
     def read():
-        for b in plan:
-            meshes = []
-            for k in b.items:
-                try:
-                    meshes.append(loader(items[k][0]))
-                except (ValueError, OSError) as err:
-                    meshes.append(err)
-            q.put((b, meshes))
+        try:
+            for b in plan:
+                meshes = []
+                for k in b.items:
+                    try:
+                        meshes.append(loader(items[k][0]))
+                    except (ValueError, OSError) as err:
+                        meshes.append(err)
+                q.put((b, meshes, None if prepare is None else prepare(b, meshes)))
+        except BaseException as err:    # anything else ends the stream in the consumer, not in a silent hang
+            q.put(err)
+            return
         q.put(None)
 
     threading.Thread(target=read, name="jaxmesh-read-ahead", daemon=True).start()
     while (got := q.get()) is not None:
+        if isinstance(got, BaseException):
+            raise got
         yield got
 
 
