@@ -126,6 +126,8 @@ def main() -> None:
     ap.add_argument("--report-only", action="store_true", help="write the tables from the saved json")
     ap.add_argument("--blind-only", action="store_true",
                     help="recompute the blind column of the saved cells (after a change to the chooser)")
+    ap.add_argument("--oracle-only", nargs="*", default=[], metavar="METHOD",
+                    help="recompute these oracle columns of the saved cells (after a change to the tuner)")
     args = ap.parse_args()
     RESULTS.mkdir(parents=True, exist_ok=True)
     path = RESULTS / "feature_table.json"
@@ -140,6 +142,15 @@ def main() -> None:
             print(f"{r['mesh']} {r['sigma']} {r['model']} seed {r['seed']}: auto {r['blind']['method']} "
                   f"{r['blind']['normal_deg']:.2f}", flush=True)
             path.write_text(json.dumps(done, indent=1))
+    for r in done["cells"] if args.oracle_only else []:
+        clean = jaxmesh.normalize(load_shared(r["mesh"]))
+        noisy = jaxmesh.add_noise(clean, r["sigma"], jax.random.PRNGKey(r["seed"]), along_normals=r["model"] == "normal")
+        for m in args.oracle_only:
+            before = r["oracle"][m]["normal_deg"]
+            r["oracle"][m] = oracle(m, clean, noisy)
+            print(f"{r['mesh']} {r['sigma']} {r['model']}: oracle {m} {before:.2f} -> {r['oracle'][m]['normal_deg']:.2f}",
+                  flush=True)
+        path.write_text(json.dumps(done, indent=1))
     for name in ([] if args.report_only else args.meshes):
         for sigma in SIGMAS:
             for model in MODELS:

@@ -17,7 +17,8 @@ The search, for continuous parameters θ in bounded coordinates u (:mod:`.space`
    error relative to the noisy input's, so the grid values are
    dimensionless.
 3. **Start and preconditioner.**  Along each coordinate a parabola through
-   the best grid point and its neighbours gives a start u₀ and a curvature
+   the best grid point and its neighbours (fitted to log E:
+   :func:`~jaxmesh.tune.search.parabola_start`) gives a start u₀ and a curvature
    h (in u); the optimiser works in y = √h (u − u₀), where the loss has unit
    curvature, so that BFGS's first (identity-Hessian) step is already a
    Newton step and its y-tolerance means the same on every mesh.
