@@ -4,9 +4,16 @@ A dataset run compiles one program per padded batch shape, and on CPU those
 compiles are much of its time.  XLA's CPU backend (jaxlib 0.10) generates its
 fused loops with the MLIR "fusion emitters" by default; the older elemental
 emitters, selected by ``--xla_cpu_use_fusion_emitters=false``, compile jaxmesh's
-programs about twice as fast and run them as fast or faster
-(``benchmarks/bench_dataset.py --variants runner runner-xla-defaults`` and
-``benchmarks/bench_xla_flags.py`` measure both).
+programs in about half the time.  How fast the programs then run depends on
+the program (``benchmarks/bench_xla_flags.py``, bunny, float64, 2 cores,
+Session 13; steady state, default → flag): the umbrella flow 150 → 107 ms,
+Taubin 242 → 219 ms, the kernel flow 486 → 299 ms, bilateral normal filtering
+1.20 → 1.00 s, a loop of 16 kernel-flow calls 647 → 419 ms, but a vmapped
+batch of those 16 meshes 820 → 998 ms.  (``benchmarks/bench_denoise.py`` in
+float32 with and without the flag: the umbrella step 1.06 → 1.80 ms per
+iteration, slower.)  The dataset runner, which gives one mesh per call on
+CPU, is 1.18× faster with it (``benchmarks/bench_dataset.py``, variant
+``runner-xla-defaults``).
 
 XLA reads ``XLA_FLAGS`` once, when JAX's first computation starts its backend,
 and aborts on a flag it does not know: :func:`prefer_fast_cpu_compiles` adds the
