@@ -77,9 +77,9 @@ def oracle(name: str, clean, noisy, grid: dict | None = None, **fixed) -> dict:
     return {"params": params, **err, "seconds": round(time.perf_counter() - start, 1)}
 
 
-def blind(clean, noisy) -> dict:
+def blind(clean, noisy, draws: int = 2) -> dict:
     start = time.perf_counter()
-    c = choose_denoiser(noisy)
+    c = choose_denoiser(noisy, draws=draws)
     return {"method": c.method, "params": c.params, "improved": c.improved, "sigma_hat": c.sigma,
             **errors(clean, c.mesh), "seconds": round(time.perf_counter() - start, 1)}
 
@@ -128,17 +128,24 @@ def main() -> None:
                     help="recompute the blind column of the saved cells (after a change to the chooser)")
     ap.add_argument("--oracle-only", nargs="*", default=[], metavar="METHOD",
                     help="recompute these oracle columns of the saved cells (after a change to the tuner)")
+    ap.add_argument("--draws", type=int, default=2,
+                    help="the blind choice's recorruptions (default 2, the library's; other values read the saved "
+                         "cells and write feature_table_draws{N}.{json,md}, with --blind-only)")
     args = ap.parse_args()
     RESULTS.mkdir(parents=True, exist_ok=True)
-    path = RESULTS / "feature_table.json"
-    done = json.loads(path.read_text()) if args.resume and path.exists() else {"cells": [], "seeds": []}
+    stem = "feature_table" if args.draws == 2 else f"feature_table_draws{args.draws}"
+    path = RESULTS / f"{stem}.json"
+    if args.draws != 2:     # the saved cells, with another blind column
+        done = json.loads((RESULTS / "feature_table.json").read_text())
+    else:
+        done = json.loads(path.read_text()) if args.resume and path.exists() else {"cells": [], "seeds": []}
     have = {(r["mesh"], r["sigma"], r["model"]) for r in done["cells"]}
     if args.blind_only:
         for r in done["cells"] + ([] if args.redo_seeds else done["seeds"]):
             clean = jaxmesh.normalize(load_shared(r["mesh"]))
             noisy = jaxmesh.add_noise(clean, r["sigma"], jax.random.PRNGKey(r["seed"]),
                                       along_normals=r["model"] == "normal")
-            r["blind"] = blind(clean, noisy)
+            r["blind"] = blind(clean, noisy, args.draws)
             print(f"{r['mesh']} {r['sigma']} {r['model']} seed {r['seed']}: auto {r['blind']['method']} "
                   f"{r['blind']['normal_deg']:.2f}", flush=True)
             path.write_text(json.dumps(done, indent=1))
@@ -182,7 +189,7 @@ def main() -> None:
                    if k in ("normal_iterations", "tangential", "sigma_s", "sigma_r")}
         text += (f"| {r['seed']} | {r['noisy']['normal_deg']:.2f} | {g['normal_deg']:.2f} ({setting}) "
                  f"| {r['blind']['normal_deg']:.2f} ({r['blind']['method']} {r['blind']['params']}) |\n")
-    (RESULTS / "feature_table.md").write_text(text)
+    (RESULTS / f"{stem}.md").write_text(text)
     print(text)
 
 
