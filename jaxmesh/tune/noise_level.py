@@ -61,8 +61,8 @@ the mesh itself carries at that scale.  Nor does that roughness differ from
 noise in its spatial correlation, which an estimator could have used: the
 correlation of z_i between neighbours is −0.30 for independent noise and
 −0.05 (cow), −0.18 (maxplanck), −0.14 (fertility), −0.06 (fandisk) on the
-clean meshes, +0.10 on the human (measured in Session 13; no estimator in this
-module separates the two).
+clean meshes, +0.10 on the human (``experiments/denoise/roughness_correlation.py``;
+no estimator in this module separates the two).
 """
 
 from __future__ import annotations

@@ -1,0 +1,58 @@
+"""How much the blind choice (``choose_denoiser``) depends on the noise estimate:
+on a few scan cells of the feature table, auto with σ̂, with the true σ, with a
+smaller recorruption (a = 0.25) and with four draws; mean face-normal error of
+each choice against the oracle Taubin of ``feature_table.json``.
+
+    .venv/bin/python experiments/denoise/sigma_sensitivity.py
+
+Prints one JSON line per cell: for each setting (error in degrees, method,
+parameters, σ̂/σ, seconds).  Session 13 ran it before the noise estimator's
+projection normals changed (``docs/guides/denoise.md`` quotes that run); the
+camelhead cell's σ̂ has changed since (0.90σ then).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+
+import jax
+
+jax.config.update("jax_enable_x64", True)
+
+import jaxmesh  # noqa: E402
+from jaxmesh.geometry import mean_edge_length  # noqa: E402
+from jaxmesh.metrics import mean_normal_angle_error  # noqa: E402
+from jaxmesh.tune import choose_denoiser  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from shared_meshes import load as load_shared  # noqa: E402
+
+RESULTS = Path(__file__).resolve().parents[2] / "experiments" / "results" / "denoise"
+CELLS = (("cow", 0.1, "normal"), ("maxplanck", 0.3, "isotropic"), ("camelhead", 0.3, "normal"),
+         ("spot", 0.1, "isotropic"), ("bunny", 0.1, "normal"))
+
+
+def main() -> None:
+    saved = json.loads((RESULTS / "feature_table.json").read_text())["cells"]
+    for name, sigma, model in CELLS:
+        clean = jaxmesh.normalize(load_shared(name))
+        noisy = jaxmesh.add_noise(clean, sigma, jax.random.PRNGKey(0), along_normals=model == "normal")
+        true = sigma * float(mean_edge_length(clean))
+        row = next(r for r in saved if (r["mesh"], r["sigma"], r["model"]) == (name, sigma, model))
+        out = {"oracle_taubin": round(row["oracle"]["taubin"]["normal_deg"], 2),
+               "best_oracle": round(min(v["normal_deg"] for v in row["oracle"].values()), 2)}
+        for label, kw in (("auto", {}), ("true_sigma", {"sigma": true}), ("a0.25", {"a": 0.25}),
+                          ("true_sigma_a0.25", {"sigma": true, "a": 0.25}), ("draws4", {"draws": 4})):
+            start = time.perf_counter()
+            c = choose_denoiser(noisy, **kw)
+            params = {k: (round(v, 3) if isinstance(v, float) else v) for k, v in c.params.items()}
+            out[label] = (round(float(mean_normal_angle_error(clean, c.mesh)), 2), c.method, params,
+                          round(c.sigma / true, 2), round(time.perf_counter() - start, 1))
+        print(name, sigma, model, json.dumps(out), flush=True)
+
+
+if __name__ == "__main__":
+    main()
