@@ -115,10 +115,9 @@ PROJECTION_SMOOTHING = 3
 def _projection_normals(mesh: Mesh):
     """n_i: the area-weighted vertex normals of the mesh after
     :data:`PROJECTION_SMOOTHING` umbrella steps x ← x + ½ K x (module docstring)."""
-    x = mesh.vertices
-    for _ in range(PROJECTION_SMOOTHING):
-        x = x + 0.5 * umbrella(mesh, x)
-    return vertex_normals(mesh.with_vertices(x), "area")
+    from ..denoise.laplacian import laplacian_smoothing
+
+    return vertex_normals(laplacian_smoothing(mesh, 0.5, PROJECTION_SMOOTHING), "area")
 
 
 def _normal_high_pass(mesh: Mesh, u, normals=None) -> np.ndarray:
