@@ -17,7 +17,7 @@ import jaxmesh
 from jaxmesh.denoise import (METHODS, edge_operator, face_graph, guided_normal_filtering, l0_denoising,
                              patch_inconsistency, vertex_update)
 from jaxmesh.denoise.bilateral_normal import bilateral_normal_filtering
-from jaxmesh.tune import Candidate, choose_denoiser
+from jaxmesh.tune import Candidate, choose_denoiser, edge_tilt
 
 
 @pytest.fixture(scope="module")
@@ -294,30 +294,77 @@ def test_choose_denoiser_picks_the_feature_preserving_filter_on_a_noisy_box():
     noisy = jaxmesh.add_noise(clean, 0.3, 1, along_normals=True)
     cands = [Candidate("taubin", {"iterations": k}) for k in (2, 10)] + [Candidate("guided_normal", {})]
     for key in (0, 1, 2):
-        c = choose_denoiser(noisy, candidates=cands, taubin_path=False, key=key)
+        c = choose_denoiser(noisy, candidates=cands, paths=(), key=key)
         assert c.method == "guided_normal" and c.improved
         assert [row[0] for row in c.table].count("taubin") == 2 and c.table[0][2] <= c.table[1][2]
 
 
-def test_the_taubin_path_estimates_what_the_candidate_loop_estimates(sphere):
-    """The Taubin path (one scan over every count, all (λ, μ) at once) reports
-    for each (λ, μ) the best count and the same estimate as running that
-    setting as a fixed candidate; its winner beats every other count of its (λ, μ)."""
-    from jaxmesh.tune.auto import TAUBIN_LAMS, TAUBIN_PASS_BANDS
+@pytest.mark.parametrize("which", [0, 1], ids=["taubin", "bilateral_normal"])
+def test_a_path_estimates_what_the_candidate_loop_estimates(sphere, which):
+    """A path (one scan over every iteration count per setting) reports for each
+    setting the best count and the same estimate as running that setting as a
+    fixed candidate; its winner beats every other count of its setting."""
+    from jaxmesh.tune.auto import PATHS
 
+    path = PATHS[which]
     noisy = jaxmesh.add_noise(sphere, 0.2, 5)
-    c = choose_denoiser(noisy, candidates=[], key=3)
-    rows = [r for r in c.table if r[0] == "taubin"]
-    assert len(rows) == len(TAUBIN_LAMS) * len(TAUBIN_PASS_BANDS)
-    method, params, risk = rows[3]
-    again = choose_denoiser(noisy, candidates=[Candidate(method, params)], taubin_path=False, key=3)
+    c = choose_denoiser(noisy, candidates=[], paths=(path,), key=3)
+    assert len(c.table) == len(path.settings) and {r[0] for r in c.table} == {path.method}
+    method, params, risk = [r for r in c.table if r[1]["iterations"] < path.max_iterations][0]
+    again = choose_denoiser(noisy, candidates=[Candidate(method, params)], paths=(), key=3)
     assert again.table[0][2] == pytest.approx(risk, rel=1e-9, abs=1e-12)
-    others = [Candidate("taubin", {**params, "iterations": k}) for k in {1, params["iterations"] + 1, 100}
-              - {params["iterations"]}]
-    worse = choose_denoiser(noisy, candidates=others, taubin_path=False, key=3)
+    others = [Candidate(method, {**params, "iterations": k})
+              for k in {1, params["iterations"] + 1, path.max_iterations} - {params["iterations"]}]
+    worse = choose_denoiser(noisy, candidates=others, paths=(), key=3)
     assert min(r[2] for r in worse.table) >= risk
     np.testing.assert_allclose(c.mesh.vertices, jaxmesh.denoise.denoise(noisy, c.method, **c.params).vertices,
                                atol=1e-12)
+
+
+def test_choose_denoiser_refuses_a_bad_path(sphere):
+    from jaxmesh.tune.auto import SearchPath
+
+    with pytest.raises(ValueError, match="paths: each must be a SearchPath"):
+        choose_denoiser(sphere, paths=(SearchPath("magic", ({},)),))
+    with pytest.raises(ValueError, match="max_iterations must be a positive int"):
+        choose_denoiser(sphere, paths=(SearchPath("taubin", ({},), (), 0),))
+    with pytest.raises(ValueError, match="has no parameter"):
+        choose_denoiser(sphere, paths=(SearchPath("taubin", ({"sigma_r": 1.0},)),))
+
+
+@pytest.mark.parametrize("ratio", [0.0, 0.4, 1.0])
+def test_the_recorruption_has_the_covariance_its_trace_assumes(sphere, ratio):
+    """tr(AᵀAΣ)/F, computed in closed form for Σ_i = σ² n nᵀ + σ_t² (I − n nᵀ), equals the
+    mean of ‖A z‖²/F over many draws of the recorruption z, and z's normal and
+    tangential variances are σ² and 2σ_t² per vertex."""
+    from jaxmesh.geometry import face_normals, mean_edge_length, vertex_normals
+    from jaxmesh.tune.auto import _recorruptions
+
+    mesh = jaxmesh.add_noise(sphere, 0.1, 4)
+    nu, n = face_normals(sphere), vertex_normals(sphere, "area")
+    ell, s = mean_edge_length(mesh), 0.01
+    zs, trace = _recorruptions(mesh, nu, n, ell, s, ratio * s, 4000, 7)
+    r = edge_tilt(mesh, nu, ell, zs)
+    assert float(jnp.mean(jnp.sum(r * r, axis=(-2, -1)))) / mesh.num_faces == pytest.approx(trace, rel=0.02)
+    normal = jnp.sum(zs * n[None], axis=-1)
+    assert float(jnp.mean(normal**2)) == pytest.approx(s**2, rel=0.02)
+    assert float(jnp.mean(jnp.sum(zs * zs, axis=-1) - normal**2)) == pytest.approx(2 * (ratio * s) ** 2, rel=0.02,
+                                                                                      abs=1e-12)
+
+
+def test_the_noise_model_sets_the_recorruptions_tangential_part():
+    b = trimesh.creation.box().subdivide().subdivide().subdivide()
+    clean = jaxmesh.Mesh.from_arrays(b.vertices, b.faces).astype(jnp.float64)
+    noisy = jaxmesh.add_noise(clean, 0.2, 1)
+    few = [Candidate("taubin", {"iterations": 5})]
+    along = choose_denoiser(noisy, candidates=few, paths=(), noise_model="normal")
+    iso = choose_denoiser(noisy, candidates=few, paths=(), noise_model="isotropic")
+    auto = choose_denoiser(noisy, candidates=few, paths=())
+    assert along.tangential_sigma == 0.0 and iso.tangential_sigma == iso.sigma
+    assert 0.0 < auto.tangential_sigma <= auto.sigma and auto.summary()["tangential_noise_sigma"] == auto.tangential_sigma
+    assert iso.noisy_risk > along.noisy_risk          # the tangential part adds to the input's error
+    with pytest.raises(ValueError, match="noise_model must be one of"):
+        choose_denoiser(noisy, candidates=few, noise_model="gaussian")
 
 
 def test_library_draws_never_reproduce_the_users_noise():

@@ -243,6 +243,25 @@ def test_noise_estimate_recovers_sigma_and_is_equivariant(estimator):
     assert estimate_noise(clean, estimator) < 0.02 * ell    # a smooth clean sphere reads as (almost) noise-free
 
 
+def test_tangential_noise_estimate_tells_isotropic_noise_from_noise_along_the_normals():
+    from jaxmesh.tune import estimate_tangential_noise
+
+    clean = sphere(3)
+    ell = float(jaxmesh.mean_edge_length(clean))
+    for s in (0.1, 0.3):
+        iso = estimate_tangential_noise(jaxmesh.add_noise(clean, s, 1))
+        along = estimate_tangential_noise(jaxmesh.add_noise(clean, s, 1, along_normals=True))
+        assert 0.8 * s * ell < iso < 1.25 * s * ell
+        assert along < 0.35 * s * ell
+    noisy = jaxmesh.add_noise(clean, 0.2, 2)
+    c, s_ = np.cos(0.7), np.sin(0.7)
+    rot = jnp.array([[c, -s_, 0.0], [s_, c, 0.0], [0.0, 0.0, 1.0]])
+    moved = noisy.with_vertices(noisy.vertices @ rot.T * 250.0 + jnp.array([[1.0, 2.0, 3.0]]))
+    assert estimate_tangential_noise(moved) == pytest.approx(250.0 * estimate_tangential_noise(noisy), rel=1e-9)
+    with pytest.raises(ValueError, match="one mesh"):
+        estimate_tangential_noise(noisy.with_vertices(jnp.stack([noisy.vertices] * 2)))
+
+
 def test_flat_patch_noise_estimate_reads_a_half_flat_mesh_at_low_noise():
     """A CAD-like mesh, flat on one half and bumpy at the scale of a few edges on
     the other: the MAD of the umbrella residual counts the bumps as noise (they

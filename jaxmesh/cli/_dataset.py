@@ -45,11 +45,11 @@ def run_dataset(args, given: dict) -> int:
 
     if args.sample:
         raise CLIError("--out-dir takes mesh files, directories or globs, not --sample")
-    bad = [flag for flag, on in (("--raw-units", args.raw_units), ("--noise-sigma", args.noise_sigma is not None))
-           if on]
+    bad = [flag for flag, on in (("--raw-units", args.raw_units), ("--noise-sigma", args.noise_sigma is not None),
+                                 ("--noise-model", args.noise_model is not None)) if on]
     if bad:
-        raise CLIError(f"{', '.join(bad)}: not supported with --out-dir (each mesh in its unit frame, σ "
-                       "estimated per mesh)")
+        raise CLIError(f"{', '.join(bad)}: not supported with --out-dir (each mesh in its unit frame, the "
+                       "noise estimated per mesh)")
     if args.tune:
         if args.method == "auto":
             raise CLIError("--tune needs a named method (--method NAME); --method auto chooses its own parameters")

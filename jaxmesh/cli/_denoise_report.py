@@ -58,7 +58,10 @@ def report_auto(args, label, out, mesh, reference, choice, caveats, seconds) -> 
         return 0
     ps = " ".join(f"{k}={v:g}" for k, v in choice.params.items())
     print(f"{label} -> {out}: auto chose {choice.method} {ps} ({seconds:.2f} s)")
-    print(f"  noise sigma {choice.sigma:.4g} ({'estimated' if choice.estimated else 'given'}); estimated RMS "
+    model = {"auto": "estimated", "normal": "noise along the normals", "isotropic": "isotropic noise"}[
+        args.noise_model or "auto"]
+    print(f"  noise sigma {choice.sigma:.4g} ({'estimated' if choice.estimated else 'given'}), "
+          f"{choice.tangential_sigma:.4g} within the surface ({model}); estimated RMS "
           f"normal error {choice.rms_tilt_degrees:.2f}° vs {summary['auto']['noisy_rms_normal_error_deg']:.2f}° "
           "for the input (recorrupted estimate, both at 1.12x the noise)")
     runner = next((r for r in choice.table if r[0] != choice.method), None)

@@ -10,6 +10,7 @@ import time
 from ..denoise import as_method
 from ..io import load, save
 from ..tune import choose_denoiser, denoise_with_tuning
+from ..tune.auto import NOISE_MODELS
 from .. import data
 from ._common import CLIError, check_output, check_view, load_input, positional_output, view_argument, with_caveats, write_view
 from ._dataset import dataset_arguments, run_dataset
@@ -40,6 +41,9 @@ def configure(p) -> None:
                    help="tune every continuous parameter of the method (as if each were 'auto')")
     p.add_argument("--noise-sigma", type=float, metavar="S",
                    help="noise standard deviation in the file's units, for blind tuning (default: estimated)")
+    p.add_argument("--noise-model", choices=NOISE_MODELS, default=None,
+                   help="--method auto: the noise within the surface, for the recorrupted estimate: 'normal' "
+                        "(noise along the normals), 'isotropic', or 'auto' (default: estimated from the mesh)")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     view_argument(p, "the input and the result (and --reference, colouring both by the distance to it)")
     p.epilog = ("Method parameters are flags named after them (--lam, --iterations, --mu, ...). "
@@ -89,10 +93,13 @@ def run(args) -> int:
     if args.method == "auto":
         label, mesh, reference, out = _load_pair(args)
         start = time.perf_counter()
-        choice, caveats = with_caveats(choose_denoiser, mesh, sigma=args.noise_sigma)
+        choice, caveats = with_caveats(choose_denoiser, mesh, sigma=args.noise_sigma,
+                                       noise_model=args.noise_model or "auto")
         save(choice.mesh, out, overwrite=args.force)
         _view(args, label, mesh, out, choice.mesh, reference)
         return report_auto(args, label, out, mesh, reference, choice, caveats, time.perf_counter() - start)
+    if args.noise_model is not None:
+        raise CLIError("--noise-model applies to --method auto (the blind choice); drop it or the named method")
     if args.raw_units and (args.tune or "auto" in given.values()):
         raise CLIError("tuning runs in the unit-diagonal frame; drop --raw-units")
     label, mesh, reference, out = _load_pair(args)

@@ -6,13 +6,14 @@ mesh, a batch of meshes in one vmapped call, or one setting shared by a
 training set.  See :mod:`jaxmesh.tune.tuner` for the search.
 """
 
-from .auto import CANDIDATES, AutoResult, Candidate, choose_denoiser, edge_tilt
+from .auto import CANDIDATES, NOISE_MODELS, PATHS, AutoResult, Candidate, SearchPath, choose_denoiser, edge_tilt
 from .noise_level import (
     LOW_NOISE,
     NOISE_ESTIMATORS,
     BlindTuningWarning,
     blind_caveats,
     estimate_noise,
+    estimate_tangential_noise,
     noise_sigma,
     umbrella_square_row_norms,
 )
@@ -26,9 +27,9 @@ from .run import AUTO, DenoiseRun, denoise_with_tuning, split_auto
 __all__ = [
     "tune", "tune_lambda", "tune_batch", "tune_shared", "TuneOptions", "TuneResult", "frame",
     "AUTO", "DenoiseRun", "denoise_with_tuning", "split_auto",
-    "estimate_noise", "noise_sigma", "umbrella_square_row_norms", "NOISE_ESTIMATORS",
+    "estimate_noise", "estimate_tangential_noise", "noise_sigma", "umbrella_square_row_norms", "NOISE_ESTIMATORS",
     "blind_caveats", "BlindTuningWarning", "LOW_NOISE",
-    "choose_denoiser", "AutoResult", "Candidate", "CANDIDATES", "edge_tilt",
+    "choose_denoiser", "AutoResult", "Candidate", "CANDIDATES", "SearchPath", "PATHS", "NOISE_MODELS", "edge_tilt",
     "OBJECTIVES", "relative_error", "sure_visual_error", "noisy_visual_error_expectation",
     "Coordinate", "search_space",
 ]

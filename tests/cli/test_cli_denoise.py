@@ -111,7 +111,7 @@ def test_denoise_tune_every_continuous_parameter(capsys, tmp_path):
 def test_denoise_auto_is_the_default_and_says_what_it_chose(capsys, tmp_path, small_pair):
     import jaxmesh
     from jaxmesh.tune import CANDIDATES, choose_denoiser
-    from jaxmesh.tune.auto import TAUBIN_LAMS, TAUBIN_PASS_BANDS
+    from jaxmesh.tune.auto import PATHS
 
     noisy, clean = small_pair
     out = str(tmp_path / "out.ply")
@@ -119,12 +119,19 @@ def test_denoise_auto_is_the_default_and_says_what_it_chose(capsys, tmp_path, sm
     s = json.loads(capsys.readouterr().out)
     want = choose_denoiser(jaxmesh.load(noisy))
     assert s["method"] == want.method and s["params"] == want.params
-    assert s["auto"]["improved"] and len(s["auto"]["candidates"]) == len(CANDIDATES) + len(TAUBIN_LAMS) * len(
-        TAUBIN_PASS_BANDS)
+    assert s["auto"]["improved"] and len(s["auto"]["candidates"]) == len(CANDIDATES) + sum(
+        len(p.settings) for p in PATHS)
     assert s["after"]["normal_angle_deg"] < 0.5 * s["before"]["normal_angle_deg"]
     np.testing.assert_allclose(jaxmesh.load(out).vertices, want.mesh.vertices, atol=1e-12)
     assert main(["denoise", noisy, str(tmp_path / "x.ply"), "--lam", "0.3"]) == 1
     assert "--lam needs a named method" in capsys.readouterr().err
+    assert main(["denoise", noisy, str(tmp_path / "n.ply"), "--noise-model", "normal", "--json"]) == 0
+    s = json.loads(capsys.readouterr().out)
+    assert s["auto"]["tangential_noise_sigma"] == 0.0
+    assert main(["denoise", noisy, str(tmp_path / "i.ply"), "--noise-model", "isotropic"]) == 0
+    assert "within the surface (isotropic noise)" in capsys.readouterr().out
+    assert main(["denoise", noisy, str(tmp_path / "t.ply"), "--method", "taubin", "--noise-model", "normal"]) == 1
+    assert "--noise-model applies to --method auto" in capsys.readouterr().err
 
 
 @pytest.mark.filterwarnings("ignore:1 isolated vertices:jaxmesh.mesh.MeshWarning")  # small_pair's far vertex
@@ -165,6 +172,7 @@ def test_a_corrupt_file_is_reported_and_skipped_and_the_exit_status_says_so(tmp_
 
 def test_out_dir_refuses_what_it_cannot_do(tmp_path, capsys):
     for flags, message in ((["--method", "kernel", "--raw-units"], "not supported with --out-dir"),
+                           (["--noise-model", "normal"], "--noise-model: not supported with --out-dir"),
                            (["--method", "kernel", "--tune-on", "2"], "--tune-on N tunes the parameters given"),
                            (["--tune"], "--tune needs a named method")):
         assert main(["denoise", "--out-dir", str(tmp_path / "o"), str(tmp_path)] + flags) == 1
