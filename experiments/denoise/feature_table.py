@@ -169,7 +169,10 @@ def main() -> None:
     if args.draws != 2:     # the saved cells, with another blind column
         done = json.loads((RESULTS / "feature_table.json").read_text())
     else:
-        done = json.loads(path.read_text()) if args.resume and path.exists() else {"cells": [], "seeds": []}
+        again = args.resume or args.blind_only or args.oracle_only or args.report_only   # these read the saved cells
+        if again and not path.exists():
+            raise SystemExit(f"{path} not found: run without --blind-only/--oracle-only/--report-only first")
+        done = json.loads(path.read_text()) if again else {"cells": [], "seeds": []}
     have = {(r["mesh"], r["sigma"], r["model"]) for r in done["cells"]}
     if args.blind_only:
         for r in done["cells"] + ([] if args.redo_seeds else done["seeds"]):

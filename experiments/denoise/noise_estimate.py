@@ -7,7 +7,10 @@ meshes (scaled to a unit bounding-box diagonal), σ ∈ {0.02, 0.1, 0.3} mean ed
 lengths, both noise models (isotropic N(0, σ²I) per vertex; N(0, σ²) along the
 clean mesh's vertex normals), seed 0; and each estimator's reading of the
 clean mesh itself, in mean edge lengths: the roughness it cannot tell from
-noise, which bounds how well any σ at or below it can be read.
+noise, which bounds how well any σ at or below it can be read.  Plus the
+noise within the surface, :func:`jaxmesh.tune.estimate_tangential_noise`
+(row *tangential*: σ̂_t/σ, near 1 for isotropic noise and near 0 along the
+normals; its clean column is the sampling irregularity it reads as noise).
 
 Writes experiments/results/denoise/noise_estimate.md.
 """
@@ -23,7 +26,7 @@ import jax
 jax.config.update("jax_enable_x64", True)
 
 import jaxmesh  # noqa: E402
-from jaxmesh.tune import NOISE_ESTIMATORS, estimate_noise  # noqa: E402
+from jaxmesh.tune import NOISE_ESTIMATORS, estimate_noise, estimate_tangential_noise  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from shared_meshes import load as load_shared  # noqa: E402
@@ -56,6 +59,11 @@ def main() -> None:
                    + " | ".join(f"{r:.2f}" for r in ratios) + " |")
             lines.append(row)
             print(row, flush=True)
+        ratios = [estimate_tangential_noise(noisy[c]) / (c[0] * ell) for c in cols]
+        row = (f"| {name} | tangential | {estimate_tangential_noise(clean) / ell:.4f} | "
+               + " | ".join(f"{r:.2f}" for r in ratios) + " |")
+        lines.append(row)
+        print(row, flush=True)
     OUT.write_text("\n".join(lines) + "\n")
     print(f"wrote {OUT}")
 

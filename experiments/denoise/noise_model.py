@@ -4,6 +4,8 @@ the mesh ("auto", the default), on the cells of feature_table.py.
 
     .venv/bin/python experiments/denoise/noise_model.py [--meshes spot cow ...]
 
+(``--meshes`` reruns those meshes and keeps the other saved rows.)
+
 Mean face-normal error of ``choose_denoiser``'s result, seed 0, with the
 oracle-tuned Taubin's error beside it (from feature_table.json), and σ̂_t/σ̂,
 the mesh's reading of its noise within the surface (1 for isotropic noise, 0
@@ -76,9 +78,14 @@ def main() -> None:
     ap.add_argument("--meshes", nargs="*", default=None)
     args = ap.parse_args()
     cells = json.loads((RESULTS / "feature_table.json").read_text())["cells"]
+    saved = RESULTS / "noise_model.json"
+    keep = {(r["mesh"], r["sigma"], r["model"]): r for r in json.loads(saved.read_text())} \
+        if args.meshes and saved.exists() else {}                   # --meshes reruns those, keeps the rest
     rows = []
     for cell in cells:
         if args.meshes and cell["mesh"] not in args.meshes:
+            if (cell["mesh"], cell["sigma"], cell["model"]) in keep:
+                rows.append(keep[cell["mesh"], cell["sigma"], cell["model"]])
             continue
         rows.append(row(cell))
         r = rows[-1]

@@ -46,8 +46,8 @@ each estimate.
 count as well, in one compiled scan per setting: the recorrupted inputs are
 denoised one iteration at a time and the estimate is read after every
 iteration, so every count costs no more than the largest (:class:`SearchPath`).
-Its rows in ``table`` are the best count of each setting.  Two are searched
-by default (``PATHS``):
+Its rows in ``table`` are the best count of each setting.  Searched by
+default (``PATHS``):
 
 * *Taubin*: on smooth scans a well-tuned Taubin filter is the method to beat,
   and its best setting depends finely on the mesh and the noise (oracle
@@ -63,11 +63,23 @@ by default (``PATHS``):
   2011): each iteration is one filtering pass of the face normals and
   ``BILATERAL_PATH_FIXED["vertex_iterations"]`` vertex updates, repeated up to
   ``BILATERAL_PATH_MAX_ITERATIONS`` times, at σ_s × σ_r ∈
-  ``BILATERAL_PATH_SIGMAS``.  Recomputing the normals from the positions
-  after every few vertex steps is what makes it beat Taubin on smooth scans
-  (oracle-tuned, 3–7% below the oracle-tuned Taubin's normal error on spot,
-  maxplanck, bunny and the cow at 0.1ℓ̄), where ten passes before the first
-  vertex update (the fixed candidates) lose to it by 10–60%.
+  ``BILATERAL_PATH_SIGMAS`` (smoothing settings); and one feature-preserving
+  setting, ``BILATERAL_FEATURE_SETTING``, up to
+  ``BILATERAL_FEATURE_MAX_ITERATIONS`` times.  Recomputing the normals from the
+  positions after every few vertex steps is what makes it beat Taubin on
+  smooth scans: oracle-tuned, it is 0.6–7% below the oracle-tuned Taubin's
+  normal error on spot, maxplanck and the bunny, and on the cow at 0.1ℓ̄
+  (above it on the cow at 0.3ℓ̄, 1–3%, and on the camelhead, 8–15%), where
+  ten normal passes before the first vertex update (the fixed candidates)
+  are up to 49% worse than it (``experiments/denoise/feature_table.py``,
+  column *bilateral_local*).  The smoothing settings leave out σ_s = 2.5:
+  with it, on the 16 cells of spot, cow, maxplanck and bunny, the choice was
+  worse in three (cow 0.1ℓ̄ isotropic 10.35° → 10.70°, cow 0.3ℓ̄ 15.88° →
+  16.20°, maxplanck 0.1ℓ̄ 6.16° → 6.20°), better in one (maxplanck 0.1ℓ̄
+  along the normals 6.16° → 6.05°), the same in twelve.  The feature setting
+  took the fandisk at 0.3ℓ̄ isotropic noise from 6.00° to 3.64° and along the
+  normals from 3.04° to 3.30° (one seed), and changed no choice on the
+  other meshes.
 
 **The decision.**  The candidate with the least estimate wins.  It is compared
 with doing nothing, whose error at the same noise level is (1 + a²) tr(AᵀAΣ):
@@ -95,7 +107,8 @@ from .noise_level import blind_caveats, estimate_tangential_noise, noise_sigma
 
 __all__ = ["Candidate", "CANDIDATES", "SearchPath", "PATHS", "NOISE_MODELS", "AutoResult", "edge_tilt", "choose_denoiser",
            "TAUBIN_LAMS", "TAUBIN_PASS_BANDS", "TAUBIN_MAX_ITERATIONS", "taubin_mu", "BILATERAL_PATH_SIGMAS",
-           "BILATERAL_PATH_FIXED", "BILATERAL_PATH_MAX_ITERATIONS"]
+           "BILATERAL_PATH_FIXED", "BILATERAL_PATH_MAX_ITERATIONS", "BILATERAL_FEATURE_SETTING",
+           "BILATERAL_FEATURE_MAX_ITERATIONS"]
 
 #: the recorruption's noise models (module docstring): σ_t estimated, 0, or σ
 NOISE_MODELS = ("auto", "normal", "isotropic")
@@ -107,6 +120,9 @@ TAUBIN_MAX_ITERATIONS = 100
 BILATERAL_PATH_SIGMAS = tuple(itertools.product((1.0, 1.5), (0.6, 1.0, 2.0)))
 BILATERAL_PATH_FIXED = {"normal_iterations": 1, "vertex_iterations": 5}
 BILATERAL_PATH_MAX_ITERATIONS = 16
+#: the feature-preserving setting of the local scheme (wide σ_s, narrow σ_r), searched up to a higher count
+BILATERAL_FEATURE_SETTING = {"sigma_s": 2.5, "sigma_r": 0.35}
+BILATERAL_FEATURE_MAX_ITERATIONS = 24
 
 
 @dataclasses.dataclass(frozen=True)
@@ -148,12 +164,15 @@ class SearchPath:
     max_iterations: int = 100
 
 
-#: the paths searched by default: Taubin and the bilateral normal filter's local iterative scheme
+#: the paths searched by default: Taubin, and the bilateral normal filter's local iterative scheme
+#: (smoothing settings, and one feature-preserving setting)
 PATHS: tuple[SearchPath, ...] = (
     SearchPath("taubin", tuple({"lam": lam, "mu": taubin_mu(lam, kpb)} for lam in TAUBIN_LAMS
                          for kpb in TAUBIN_PASS_BANDS), (), TAUBIN_MAX_ITERATIONS),
     SearchPath("bilateral_normal", tuple({"sigma_s": ss, "sigma_r": sr} for ss, sr in BILATERAL_PATH_SIGMAS),
-         tuple(BILATERAL_PATH_FIXED.items()), BILATERAL_PATH_MAX_ITERATIONS),
+               tuple(BILATERAL_PATH_FIXED.items()), BILATERAL_PATH_MAX_ITERATIONS),
+    SearchPath("bilateral_normal", (BILATERAL_FEATURE_SETTING,), tuple(BILATERAL_PATH_FIXED.items()),
+               BILATERAL_FEATURE_MAX_ITERATIONS),
 )
 
 
