@@ -1,7 +1,7 @@
 """Run every example and record its output and run time in docs/examples-output/
 (the documentation site shows these files).
 
-    .venv/bin/python examples/run_all.py
+    .venv/bin/python examples/run_all.py [NAME ...]     # every example, or those named
 """
 
 import subprocess
@@ -20,7 +20,12 @@ def main() -> int:
     dest.mkdir(parents=True, exist_ok=True)
     failed = 0
     with tempfile.TemporaryDirectory() as tmp:
-        for name in EXAMPLES:
+        names = sys.argv[1:] or EXAMPLES
+        unknown = sorted(set(names) - set(EXAMPLES))
+        if unknown:
+            print(f"unknown example(s) {unknown}; choose from {EXAMPLES}", file=sys.stderr)
+            return 2
+        for name in names:
             start = time.perf_counter()
             run = subprocess.run([sys.executable, str(HERE / f"{name}.py"), "--out", tmp],
                                  capture_output=True, text=True, cwd=HERE)
