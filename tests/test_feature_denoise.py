@@ -299,7 +299,8 @@ def test_choose_denoiser_picks_the_feature_preserving_filter_on_a_noisy_box():
         assert [row[0] for row in c.table].count("taubin") == 2 and c.table[0][2] <= c.table[1][2]
 
 
-@pytest.mark.parametrize("which", [0, 1], ids=["taubin", "bilateral"])   # PATHS[2]: PATHS[1]'s method, one setting
+# the same scan for every path (PATHS[2] is PATHS[1]'s method at one setting); Taubin's 100 counts in the slow run
+@pytest.mark.parametrize("which", [pytest.param(0, id="taubin", marks=pytest.mark.slow), pytest.param(1, id="bilateral")])
 def test_a_path_estimates_what_the_candidate_loop_estimates(sphere, which):
     """A path (one scan over every iteration count per setting) reports for each
     setting the best count and the same estimate as running that setting as a
