@@ -108,7 +108,8 @@ def local_oracle(clean, noisy) -> dict:
 def blind(clean, noisy, draws: int = 2) -> dict:
     start = time.perf_counter()
     c = choose_denoiser(noisy, draws=draws)
-    return {"method": c.method, "params": c.params, "improved": c.improved, "sigma_hat": c.sigma,
+    return {"method": c.method, "params": c.params, "components": [list(x) for x in c.components],
+            "improved": c.improved, "sigma_hat": c.sigma,
             "tangential_sigma": c.tangential_sigma,
             **errors(clean, c.mesh), "seconds": round(time.perf_counter() - start, 1)}
 
@@ -121,6 +122,13 @@ def cell(name: str, sigma: float, model: str, seed: int = 0, methods=ORACLE, gri
     out["oracle"] = {m: oracle(m, clean, noisy, grid) for m in methods}
     out["blind"] = blind(clean, noisy)
     return out
+
+
+def choice(b: dict, params: bool = False) -> str:
+    """The blind choice: its method (and parameters), or the blend's weighted components."""
+    if b["method"] != "blend":
+        return f"{b['method']} {b['params']}" if params else b["method"]
+    return " + ".join(f"{w:.2f} {m}" + (f" {p}" if params else "") for m, p, w in b["components"])
 
 
 def table(rows: list[dict]) -> str:
@@ -146,7 +154,7 @@ def table(rows: list[dict]) -> str:
         lines.append(
             f"| {r['mesh']} | {r['sigma']} | {r['model'][:3]} | {r['noisy']['normal_deg']:.2f} | "
             + " | ".join(f"{o[m]['normal_deg']:.2f}" if m in o else "–" for m in ORACLE)
-            + f" | {b['normal_deg']:.2f} ({b['method']}, E {b['E'] / r['noisy']['E']:.2f}) | {ratio:.2f} | "
+            + f" | {b['normal_deg']:.2f} ({choice(b)}, E {b['E'] / r['noisy']['E']:.2f}) | {ratio:.2f} | "
             + ("yes" if b["normal_deg"] < o["taubin"]["normal_deg"] else "**no**") + " |")
     return "\n".join(lines) + "\n"
 
@@ -229,7 +237,7 @@ def main() -> None:
         setting = {k: (round(v, 3) if isinstance(v, float) else v) for k, v in g["params"].items()
                    if k in ("normal_iterations", "tangential", "sigma_s", "sigma_r")}
         text += (f"| {r['seed']} | {r['noisy']['normal_deg']:.2f} | {g['normal_deg']:.2f} ({setting}) "
-                 f"| {r['blind']['normal_deg']:.2f} ({r['blind']['method']} {r['blind']['params']}) |\n")
+                 f"| {r['blind']['normal_deg']:.2f} ({choice(r['blind'], params=True)}) |\n")
     (RESULTS / f"{stem}.md").write_text(text)
     print(text)
 

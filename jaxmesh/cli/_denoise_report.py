@@ -49,6 +49,10 @@ def report_run(args, label, out, mesh, reference, run, caveats, seconds) -> int:
     return 0
 
 
+def _settings(params: dict) -> str:
+    return " ".join(f"{k}={v:g}" for k, v in params.items())
+
+
 def report_auto(args, label, out, mesh, reference, choice, caveats, seconds) -> int:
     summary = {"input": label, "output": out, "method": choice.method, "params": choice.params,
                "seconds": round(seconds, 3), "auto": choice.summary(), "warnings": caveats}
@@ -56,17 +60,25 @@ def report_auto(args, label, out, mesh, reference, choice, caveats, seconds) -> 
     if args.json:
         print(json.dumps(summary))
         return 0
-    ps = " ".join(f"{k}={v:g}" for k, v in choice.params.items())
-    print(f"{label} -> {out}: auto chose {choice.method} {ps} ({seconds:.2f} s)")
+    if choice.method == "blend":
+        what = "a blend, " + " + ".join(f"{w:.3g} x {m} {_settings(p)}" for m, p, w in choice.components)
+    else:
+        what = f"{choice.method} {_settings(choice.params)}"
+    print(f"{label} -> {out}: auto chose {what} ({seconds:.2f} s)")
     model = {"auto": "estimated", "normal": "noise along the normals", "isotropic": "isotropic noise"}[
         args.noise_model or "auto"]
     print(f"  noise sigma {choice.sigma:.4g} ({'estimated' if choice.estimated else 'given'}), "
           f"{choice.tangential_sigma:.4g} within the surface ({model}); estimated RMS "
           f"normal error {choice.rms_tilt_degrees:.2f}° vs {summary['auto']['noisy_rms_normal_error_deg']:.2f}° "
           "for the input (recorrupted estimate, both at 1.12x the noise)")
-    runner = next((r for r in choice.table if r[0] != choice.method), None)
-    if runner is not None:
-        print(f"  best other method: {runner[0]} {runner[1]} (estimate {runner[2]:.3g} vs {choice.risk:.3g})")
+    if choice.method == "blend":
+        best = choice.table[0]
+        print(f"  best single setting: {best[0]} {_settings(best[1])} (estimate {best[2]:.3g}; the blend's, on "
+              f"fresh draws, {choice.risk:.3g})")
+    else:
+        runner = next((r for r in choice.table if r[0] != choice.method), None)
+        if runner is not None:
+            print(f"  best other method: {runner[0]} {runner[1]} (estimate {runner[2]:.3g} vs {choice.risk:.3g})")
     if reference is not None:
         _errors_lines(summary)
     return 0

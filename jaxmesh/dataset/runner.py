@@ -250,6 +250,8 @@ def _run_single(mesh, method: str, params: dict, record: dict):
 
         choice = choose_denoiser(mesh)
         record.update(chosen=choice.method, params=choice.params)
+        if choice.method == "blend":
+            record["components"] = [{"method": m, "params": p, "weight": w} for m, p, w in choice.components]
         return choice.mesh
     except (ValueError, FloatingPointError) as err:
         return err

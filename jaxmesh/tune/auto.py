@@ -33,14 +33,10 @@ normals n_i: Σ_i = σ² n_i n_iᵀ + σ_t² (I − n_i n_iᵀ), σ_t the noise 
 surface: 0 for noise along the normals, σ for isotropic noise
 (``noise_model``), or, by default, the mesh's own reading
 :func:`~jaxmesh.tune.estimate_tangential_noise`, capped at σ.  It matters
-although A sees only normal components, because a filter turns tangential
-input noise into normal output error: recorrupting isotropic noise along the
-normals only (the estimate's earlier form) chose a 6.00° bilateral setting over
-a 4.77° guided one on the fandisk at 0.3ℓ̄, and 17.26° over 15.48° on the cow;
-recorrupting noise along the normals isotropically costs as much the other way
-(cow at 0.1ℓ̄: 11.41° against 10.81°).  The same draws are used for every
-candidate (common random numbers), so the ranking is much less noisy than
-each estimate.
+because a filter turns tangential input noise into normal output error:
+recorrupting isotropic noise along the normals only chose 6.00° over 4.77° on
+the fandisk at 0.3ℓ̄; the converse chose 11.41° over 10.81° on the cow at
+0.1ℓ̄.  Every candidate sees the same draws (common random numbers).
 
 **The paths.**  Some families are searched over their outer-iteration
 count as well, in one compiled scan per setting: the recorrupted inputs are
@@ -73,18 +69,18 @@ default (``PATHS``):
   ten normal passes before the first vertex update (the fixed candidates)
   are up to 49% worse than it (``experiments/denoise/feature_table.py``,
   column *bilateral_local*).  The smoothing settings leave out σ_s = 2.5:
-  with it, on the 16 cells of spot, cow, maxplanck and bunny, the choice was
-  worse in three (cow 0.1ℓ̄ isotropic 10.35° → 10.70°, cow 0.3ℓ̄ 15.88° →
-  16.20°, maxplanck 0.1ℓ̄ 6.16° → 6.20°), better in one (maxplanck 0.1ℓ̄
-  along the normals 6.16° → 6.05°), the same in twelve.  The feature setting
+  with it the choice was worse in three of the 16 cells of spot, cow,
+  maxplanck and bunny (cow 0.3ℓ̄ 15.88° → 16.20°), better in one.  The feature setting
   took the fandisk at 0.3ℓ̄ isotropic noise from 6.00° to 3.64° and along the
   normals from 3.04° to 3.30° (one seed), and changed no choice on the
   other meshes.
 
-**The decision.**  The candidate with the least estimate wins.  It is compared
+**The decision.**  The candidate with the least estimate wins, unless a convex
+blend of two leaders (the best of each path and of each fixed method) is
+estimated better on fresh draws (:mod:`jaxmesh.tune.blend`).  It is compared
 with doing nothing, whose error at the same noise level is (1 + a²) tr(AᵀAΣ):
-if no candidate beats it, ``improved`` is False and the caller must say so.
-σ comes from :func:`~jaxmesh.tune.estimate_noise` unless given.
+if the choice does not beat it, ``improved`` is False and the caller must say
+so.  σ comes from :func:`~jaxmesh.tune.estimate_noise` unless given.
 """
 
 from __future__ import annotations
@@ -103,6 +99,7 @@ from jaxtyping import Array, Float
 from .._private import RECORRUPTION_STREAM, library_key, lift
 from ..geometry import face_normals, mean_edge_length, vertex_normals
 from ..mesh import Mesh
+from .blend import BLEND_DRAWS, BLEND_SALT, best_blend, tilt_gram
 from .noise_level import blind_caveats, estimate_tangential_noise, noise_sigma
 
 __all__ = ["Candidate", "CANDIDATES", "SearchPath", "PATHS", "NOISE_MODELS", "AutoResult", "edge_tilt", "choose_denoiser",
@@ -203,11 +200,13 @@ class AutoResult:
     """What :func:`choose_denoiser` chose and why.
 
     * ``method``, ``params``: the winner (the method's other parameters at
-      their defaults); ``mesh``: the input denoised with it;
+      their defaults), or ``"blend"`` and ``{}`` when two are blended;
+      ``components``: (method, params, weight) of what ``mesh``, the output, is
+      made of (one with weight 1, or the blend's two, :mod:`jaxmesh.tune.blend`);
     * ``sigma``: the noise σ used (mesh units) and whether it was ``estimated``;
       ``tangential_sigma``: the σ_t within the surface of the recorruption;
     * ``risk``: the winner's estimated mean squared edge tilt (radians²) at the
-      recorrupted noise level, ``noisy_risk`` doing nothing's, and
+      recorrupted noise level (a blend's on its own draws), ``noisy_risk`` doing nothing's, and
       ``improved = risk < noisy_risk``;
     * ``table``: every candidate with its estimate, best first.
     """
@@ -222,6 +221,7 @@ class AutoResult:
     noisy_risk: float
     improved: bool
     table: list
+    components: tuple = ()
 
     @property
     def rms_tilt_degrees(self) -> float:
@@ -235,6 +235,7 @@ class AutoResult:
                 "estimated_rms_normal_error_deg": self.rms_tilt_degrees,
                 "noisy_rms_normal_error_deg": float(np.degrees(np.sqrt(max(self.noisy_risk, 0.0)))),
                 "improved": self.improved,
+                "components": [{"method": m, "params": p, "weight": w} for m, p, w in self.components],
                 "candidates": [{"method": m, "params": p, "risk": r} for m, p, r in self.table]}
 
 
@@ -283,7 +284,8 @@ def _denoise(mesh: Mesh, x, candidate: Candidate, aux: dict):
     return _run(mesh, x, cont, aux, candidate.method, statics)
 
 
-def _check(noisy: Mesh, candidates: Sequence[Candidate], paths: Sequence[SearchPath], draws, a, noise_model) -> None:
+def _check(noisy: Mesh, candidates: Sequence[Candidate], paths: Sequence[SearchPath], draws, a, noise_model,
+           blend_draws=0) -> None:
     from ..denoise import METHODS
 
     if not isinstance(noisy, Mesh):
@@ -304,19 +306,22 @@ def _check(noisy: Mesh, candidates: Sequence[Candidate], paths: Sequence[SearchP
         if c.method not in METHODS:
             raise ValueError(f"unknown method {c.method!r} in candidates; choose from {sorted(METHODS)}")
         METHODS[c.method].resolve(**c.params)
-    if isinstance(draws, bool) or not isinstance(draws, int) or draws < 1:
-        raise ValueError(f"draws must be a positive int, got {draws!r}")
+    for name, value, least in (("draws", draws, 1), ("blend_draws", blend_draws, 0)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < least:
+            raise ValueError(f"{name} must be an int >= {least}, got {value!r}")
     if not (np.isfinite(a) and a > 0):
         raise ValueError(f"a must be a positive number, got {a!r}")
     if noise_model not in NOISE_MODELS:
         raise ValueError(f"noise_model must be one of {NOISE_MODELS}, got {noise_model!r}")
 
 
-def _recorruptions(noisy: Mesh, nu, n, ell, s: float, s_t: float, draws: int, key):
+def _recorruptions(noisy: Mesh, nu, n, ell, s: float, s_t: float, draws: int, key, salt: int = 0):
     """(z, tr(AᵀAΣ)/F): ``draws`` fields z ~ N(0, Σ_i = s² n_i n_iᵀ + s_t² (I − n_i n_iᵀ)),
-    (draws, V, 3), and the trace of the module docstring (each edge difference sees its two vertices)."""
+    (draws, V, 3), and the trace of the module docstring (each edge difference sees its two vertices);
+    a nonzero ``salt`` draws an independent set."""
     y = noisy.vertices
     k = library_key(key, RECORRUPTION_STREAM)
+    k = jax.random.fold_in(k, salt) if salt else k
     zs = s * jax.random.normal(k, (draws, noisy.num_vertices, 1), y.dtype) * n[None]
     if s_t > 0:
         xi = jax.random.normal(jax.random.fold_in(k, 1), (draws, noisy.num_vertices, 3), y.dtype)
@@ -329,7 +334,7 @@ def _recorruptions(noisy: Mesh, nu, n, ell, s: float, s_t: float, draws: int, ke
 
 def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequence[Candidate] = CANDIDATES,
                     *, paths: Sequence[SearchPath] = PATHS, noise_model: str = "auto", draws: int = 2,
-                    a: float = 0.5, key=0) -> AutoResult:
+                    blend_draws: int = BLEND_DRAWS, a: float = 0.5, key=0) -> AutoResult:
     """Pick the candidate with the least recorrupted normal-error estimate
     (module docstring) and denoise ``noisy`` with it, blind.
 
@@ -342,15 +347,17 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
         noise_model: the recorruption's noise within the surface: ``"auto"`` (estimated,
             capped at σ), ``"normal"`` (none: noise along the normals) or ``"isotropic"`` (σ).
         draws: recorruptions per candidate.
+        blend_draws: fresh recorruptions on which the blends of the leaders are fitted and judged
+            (:mod:`jaxmesh.tune.blend`); 0: no blending.
         a: the recorruption strength.
         key: the key (or int seed) of the recorruptions.
 
     Returns:
-        An :class:`AutoResult`: the method and parameters chosen, the denoised mesh,
-        the table of estimated risks."""
+        An :class:`AutoResult`: the method and parameters chosen (or the blend), the
+        denoised mesh, the table of estimated risks."""
     from ..denoise import METHODS
 
-    _check(noisy, candidates, paths, draws, a, noise_model)
+    _check(noisy, candidates, paths, draws, a, noise_model, blend_draws)
     s, estimated = noise_sigma(noisy, sigma)
     s_t = {"normal": 0.0, "isotropic": s}.get(noise_model)
     s_t = min(estimate_tangential_noise(noisy), s) if s_t is None else s_t
@@ -364,19 +371,28 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
     zs, trace = _recorruptions(noisy, nu, n, ell, s, s_t, draws, key)
     constant = (1 + 1 / a**2) * trace
 
-    table = []
-    for c in candidates:
-        est = 0.0
-        for z in zs:
-            out = _denoise(noisy, y + a * z, c, auxes[c.method])
-            r = edge_tilt(noisy, nu, ell, out - (y - z / a))
-            est += float(jnp.sum(r * r)) / noisy.num_faces / draws
-        table.append((c.method, dict(c.params), est - constant))
+    def tilt(row, z):   # A(f(ŷ) − ỹ) for the (method, params, ...) row and the recorruption z
+        return edge_tilt(noisy, nu, ell, _denoise(noisy, y + a * z, Candidate(*row[:2]), auxes[row[0]]) - (y - z / a))
+
+    table = [(c.method, dict(c.params), sum(float(jnp.sum(tilt((c.method, c.params), z) ** 2)) for z in zs)
+              / noisy.num_faces / draws - constant) for c in candidates]
+    leaders = []
+    leaders += [min((r for r in table if r[0] == m), key=lambda r: r[2]) for m in dict.fromkeys(r[0] for r in table)]
     for path in paths:
-        table += _path_rows(noisy, path, y[None] + a * zs, y[None] - zs / a, nu, ell, auxes[path.method], constant)
+        rows = _path_rows(noisy, path, y[None] + a * zs, y[None] - zs / a, nu, ell, auxes[path.method], constant)
+        table += rows
+        leaders.append(min(rows, key=lambda row: row[2]))
     table.sort(key=lambda row: row[2])
-    method, params, risk = table[0]
-    best = noisy.with_vertices(_denoise(noisy, y, Candidate(method, params), auxes[method]))
+    components, risk = ((table[0][0], table[0][1], 1.0),), table[0][2]
+    if blend_draws and len(leaders) > 1:
+        gram = tilt_gram(leaders, _recorruptions(noisy, nu, n, ell, s, s_t, blend_draws, key, salt=BLEND_SALT)[0], tilt)
+        rows, total = best_blend(gram, next(i for i, r in enumerate(leaders) if r is table[0]))
+        if len(rows) == 2:
+            components = tuple((leaders[i][0], leaders[i][1], w) for i, w in rows)
+            risk = total / noisy.num_faces / blend_draws - constant
+    out = sum(w * _denoise(noisy, y, Candidate(m, p), auxes[m]) for m, p, w in components)
+    method, params = (components[0][0], components[0][1]) if len(components) == 1 else ("blend", {})
     noisy_risk = (1 + a**2) * trace
     blind_caveats(noisy, s, estimated, risk / noisy_risk)
-    return AutoResult(method, params, best, s, estimated, s_t, risk, noisy_risk, bool(risk < noisy_risk), table)
+    return AutoResult(method, params, noisy.with_vertices(out), s, estimated, s_t, risk, noisy_risk,
+                      bool(risk < noisy_risk), table, components)

@@ -1,0 +1,105 @@
+"""Blending two denoisers, with the weight chosen blind (aggregation).
+
+Where two denoisers err differently, the average of their outputs can beat
+both: on the shared spot at 0.3ℓ̄ (isotropic noise) the oracle-tuned Taubin
+filter reaches 6.67° of mean face-normal error, the oracle-tuned local
+bilateral normal filter 6.63°, and their best convex blend 6.46°; on the
+fandisk with noise along the normals, a blend of the chooser's bilateral and
+guided filters reaches 3.08° where either alone reaches 3.30° and 3.04°
+(``experiments/denoise/feature_table.py``).  Choosing weights by an unbiased
+estimate of the risk is Blu & Luisier's SURE-LET (2007); here the estimate is
+:mod:`jaxmesh.tune.auto`'s recorrupted edge-tilt risk, which needs no
+derivative of either denoiser.
+
+**The weight.**  For two denoisers f_i, f_j and one recorruption (ŷ, ỹ), let
+T_i = A(f_i(ŷ) − ỹ) (the edge tilts of :func:`~jaxmesh.tune.edge_tilt`).  The
+blend f_w = w f_i + (1 − w) f_j is a denoiser too, and A is linear, so its
+recorrupted estimate is the quadratic
+
+    R(w) = ‖T_j + w (T_i − T_j)‖² / F − c,    minimised at
+    w* = clip(−⟨T_i − T_j, T_j⟩ / ‖T_i − T_j‖², 0, 1),
+
+summed over the draws (c, the noise constant, is the same for every
+denoiser).  The convex constraint keeps the blend between its two parents.
+
+**The choice.**  The weight is fitted on ``BLEND_DRAWS`` recorruptions drawn
+afresh (independent of those that ranked the candidates, so a lucky ranking
+draw does not carry over), for every pair of *leaders* (the best setting of
+each search path and of each method among the fixed candidates), and the
+blend is kept only when its estimate on those draws is below the single
+winner's.  It is not always right: on the camelhead at 0.3ℓ̄ (isotropic) a
+Taubin-guided blend was estimated 0.4% better and was 0.6% worse (4.65°
+against 4.62°); the estimate tracks the mean *squared* tilt, and a blend
+trades a few large angle errors for many small ones.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+__all__ = ["BLEND_DRAWS", "blend_weight", "best_blend", "tilt_gram"]
+
+#: fresh recorruptions on which the blend weights are fitted and the blend is judged
+BLEND_DRAWS = 6
+#: folded into the recorruption key for the blend's draws (the ranking's are unsalted)
+BLEND_SALT = 2
+
+
+def blend_weight(gram: np.ndarray, i: int, j: int) -> tuple[float, float]:
+    """w* and the summed squared tilt ‖T_j + w*(T_i − T_j)‖² of the blend
+    w f_i + (1 − w) f_j (module docstring), from the Gram matrix G_kl = ⟨T_k, T_l⟩
+    of the denoisers' recorrupted edge tilts (summed over the draws).
+
+    Arguments:
+        gram: (K, K) the Gram matrix of the tilts.
+        i: the first denoiser's row.
+        j: the second's.
+
+    Returns:
+        (w*, the blend's summed squared tilt)."""
+    g = np.asarray(gram, np.float64)
+    dd = g[i, i] - 2 * g[i, j] + g[j, j]                   # ‖T_i − T_j‖²
+    de = g[i, j] - g[j, j]                                 # ⟨T_i − T_j, T_j⟩
+    w = float(np.clip(-de / dd, 0.0, 1.0)) if dd > 0 else 0.0
+    return w, float(g[j, j] + 2 * w * de + w * w * dd)
+
+
+def best_blend(gram: np.ndarray, winner: int) -> tuple[tuple[tuple[int, float], ...], float]:
+    """The best of the single ``winner`` and the convex blend of every pair of denoisers.
+
+    Arguments:
+        gram: (K, K) the Gram matrix of the K denoisers' recorrupted edge tilts, on the same draws.
+        winner: the row of the single winner the blends must beat.
+
+    Returns:
+        ((row, weight), ...) of the choice (one row with weight 1.0, or two rows whose
+        weights sum to 1), and its summed squared tilt."""
+    g = np.asarray(gram, np.float64)
+    best: tuple = (((winner, 1.0),), float(g[winner, winner]))
+    for i, j in itertools.combinations(range(len(g)), 2):
+        w, risk = blend_weight(g, i, j)
+        if 0.0 < w < 1.0 and risk < best[1]:
+            best = (((i, w), (j, 1.0 - w)), risk)
+    return best
+
+
+def tilt_gram(rows: Sequence, zs, tilt: Callable) -> np.ndarray:
+    """G_kl = Σ_d ⟨T_k(z_d), T_l(z_d)⟩: the Gram matrix of the recorrupted edge
+    tilts of K denoisers over the draws z_d (module docstring; the blend's draws
+    are fresh, independent of the ranking's).
+
+    Arguments:
+        rows: the K denoisers, as ``tilt`` takes them.
+        zs: the recorruptions z_d, (D, V, 3).
+        tilt: tilt(row, z) → the edge tilts A(f_row(y + a z) − (y − z/a)).
+
+    Returns:
+        (K, K) float64."""
+    gram = np.zeros((len(rows), len(rows)))
+    for z in zs:
+        t = np.stack([np.asarray(tilt(row, z), np.float64).ravel() for row in rows])
+        gram += t @ t.T
+    return gram
