@@ -17,7 +17,7 @@ noisy = jaxmesh.add_noise(clean, 0.3, jax.random.PRNGKey(0))        # σ = 0.3 m
 blind = tune(noisy, method="kernel")                                 # no clean mesh: SURE of the visual error
 print(f"kernel flow, blind λ = {float(blind.params['lam']):.4f}")
 auto = choose_denoiser(noisy)                                        # method and parameters, blind
-print(f"choose_denoiser picked {auto.method} {auto.params}")
+print("choose_denoiser picked " + " + ".join(f"{w:.2f} x {m} {p}" for m, p, w in auto.components))   # one, or a blend
 for label, mesh in (("noisy", noisy), ("kernel, blind λ", blind.mesh), ("auto", auto.mesh)):
     print(f"{label:>16}: visual error {float(visual_error(clean, mesh)):.3e}, "
           f"normal error {float(mean_normal_angle_error(clean, mesh)):.2f}°")

@@ -39,6 +39,13 @@ VIEWS = {"fandisk": (30, -40), "bunny": (15, 20), "cow": (10, 20), "spot": (15, 
 DEFAULT_CELLS = ("fandisk:0.3:normal", "fandisk:0.3:isotropic", "bunny:0.1:normal", "maxplanck:0.3:isotropic")
 
 
+def blind_output(b: dict, noisy):
+    """The saved blind choice: its method, or the weighted sum of the blend's components."""
+    if b["method"] != "blend":
+        return run(b["method"], b["params"], noisy)
+    return noisy.with_vertices(sum(w * run(m, p, noisy).vertices for m, p, w in b["components"]))
+
+
 def run(name: str, params: dict, noisy):
     """``name`` with the saved ``params`` (the oracle's "bilateral_local" is bilateral_normal)."""
     method = METHODS["bilateral_normal" if name == "bilateral_local" else name]
@@ -55,9 +62,8 @@ def panels(cell: dict) -> list:
     shown = [("clean", clean), (f"noisy {cell['sigma']}ℓ̄ {cell['model'][:3]}", noisy)]
     for label, name, params in (("oracle taubin", "taubin", oracle["taubin"]["params"]),
                                 (f"oracle {best}", best, oracle[best]["params"]),
-                                (f"blind auto: {cell['blind']['method']}", cell["blind"]["method"],
-                                 cell["blind"]["params"])):
-        out = run(name, params, noisy)
+                                (f"blind auto: {cell['blind']['method']}", None, None)):
+        out = run(name, params, noisy) if name else blind_output(cell["blind"], noisy)
         shown.append((f"{label}\n{float(mean_normal_angle_error(clean, out)):.2f}°", out))
     return shown
 

@@ -28,6 +28,7 @@ jax.config.update("jax_enable_x64", True)
 import jaxmesh  # noqa: E402
 from jaxmesh.metrics import mean_normal_angle_error  # noqa: E402
 from jaxmesh.tune import NOISE_MODELS, choose_denoiser, estimate_noise, estimate_tangential_noise  # noqa: E402
+from jaxmesh.tune.blend import BLEND_DRAWS  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from shared_meshes import load as load_shared  # noqa: E402
@@ -35,7 +36,7 @@ from shared_meshes import load as load_shared  # noqa: E402
 RESULTS = Path(__file__).resolve().parents[2] / "experiments" / "results" / "denoise"
 
 
-def row(cell: dict) -> dict:
+def row(cell: dict, blend_draws: int = BLEND_DRAWS) -> dict:
     clean = jaxmesh.normalize(load_shared(cell["mesh"]))
     noisy = jaxmesh.add_noise(clean, cell["sigma"], jax.random.PRNGKey(cell["seed"]),
                               along_normals=cell["model"] == "normal")
@@ -46,15 +47,16 @@ def row(cell: dict) -> dict:
         start = time.perf_counter()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            c = choose_denoiser(noisy, noise_model=model)
+            c = choose_denoiser(noisy, noise_model=model, blend_draws=blend_draws)
         out[model] = {"normal_deg": float(mean_normal_angle_error(clean, c.mesh)), "method": c.method,
                       "params": c.params, "seconds": round(time.perf_counter() - start, 1)}
     return out
 
 
-def table(rows: list[dict]) -> str:
+def table(rows: list[dict], blend_draws: int = BLEND_DRAWS) -> str:
+    flag = "" if blend_draws == BLEND_DRAWS else f" --blend-draws {blend_draws}"
     lines = ["# The blind chooser's noise model", "",
-             "Regenerate: `.venv/bin/python experiments/denoise/noise_model.py` (after feature_table.py).", "",
+             f"Regenerate: `.venv/bin/python experiments/denoise/noise_model.py{flag}` (after feature_table.py).", "",
              "Mean face-normal error (degrees) of `choose_denoiser` with the recorruption's tangential part "
              "σ_t = 0 (*normal*), σ (*isotropic*) or estimated (*auto*, the default: "
              "min(σ̂_t, σ̂)); σ̂_t/σ̂ is the mesh's reading. Seed 0; noise *iso* = isotropic, *nor* = along the "
@@ -76,6 +78,8 @@ def table(rows: list[dict]) -> str:
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--meshes", nargs="*", default=None)
+    ap.add_argument("--blend-draws", type=int, default=BLEND_DRAWS,
+                    help=f"the chooser's blend draws (default {BLEND_DRAWS}, the library's; 0: no blending)")
     args = ap.parse_args()
     cells = json.loads((RESULTS / "feature_table.json").read_text())["cells"]
     saved = RESULTS / "noise_model.json"
@@ -87,12 +91,12 @@ def main() -> None:
             if (cell["mesh"], cell["sigma"], cell["model"]) in keep:
                 rows.append(keep[cell["mesh"], cell["sigma"], cell["model"]])
             continue
-        rows.append(row(cell))
+        rows.append(row(cell, args.blend_draws))
         r = rows[-1]
         print(f"{r['mesh']} {r['sigma']} {r['model']}: " + " ".join(
             f"{m} {r[m]['normal_deg']:.2f}" for m in NOISE_MODELS), flush=True)
         (RESULTS / "noise_model.json").write_text(json.dumps(rows, indent=1))
-    text = table(rows)
+    text = table(rows, args.blend_draws)
     (RESULTS / "noise_model.md").write_text(text)
     print(text)
 

@@ -3,7 +3,10 @@ spatial correlation?  For z_i = n_i · (K² y)_i / ‖row_i(K²)‖ (the umbrell
 estimator's residual, ``jaxmesh.tune.noise_level``) this prints, per mesh, the
 correlation of z between neighbours (lag 1) and between vertices two edges
 apart (lag 2), on the clean mesh and for independent unit noise along its
-normals.  The ``noise_level`` docstring quotes it.
+normals.  The ``noise_level`` docstring quotes it.  Then, whether a sharper
+high-pass would leave less of the roughness: the "flat" statistic (10%
+quantile of the 2-ring patch means of z², calibrated by unit noise along the
+normals) of the clean mesh, in ℓ̄, with K^p in place of K², p = 1..6.
 
     .venv/bin/python experiments/denoise/roughness_correlation.py
 """
@@ -41,6 +44,30 @@ def lag_covariances(mesh, z: np.ndarray) -> tuple[float, float, float]:
     return float(np.mean(z * z)), float(z @ (a @ z)) / a.nnz, float(z @ (a2 @ z)) / a2.nnz
 
 
+def order_readings(mesh, orders=range(1, 7), quantile: float = 0.1) -> list[float]:
+    """The clean mesh's "flat" reading, in ℓ̄, with the high-pass K^p for each p."""
+    from jaxmesh.sparse import umbrella_matrix
+    from jaxmesh.tune.noise_level import _patch_statistic, _projection_normals, _two_ring
+    import scipy.sparse as sp
+
+    k = umbrella_matrix(mesh).tocsr()
+    n = np.asarray(_projection_normals(mesh), np.float64)
+    y = np.asarray(mesh.vertices, np.float64)
+    ring = _two_ring(mesh) + sp.identity(mesh.num_vertices, format="csr")
+    ring.data[:] = 1
+    unit = np.random.default_rng(0).standard_normal((3, len(y), 1)) * n
+    kp, out = sp.identity(len(y), format="csr"), []
+    for p in range(1, max(orders) + 1):
+        kp = (k @ kp).tocsr()
+        g = np.sqrt(np.asarray(kp.multiply(kp).sum(axis=1)).ravel())
+        ok = g > 0
+        gs = np.where(ok, g, 1.0)
+        stat = lambda u: _patch_statistic((np.sum((kp @ u) * n, axis=1) / gs) ** 2, ring, ok, quantile)  # noqa: E731
+        if p in orders:
+            out.append(float(np.sqrt(stat(y) / np.mean([stat(u) for u in unit]))) / float(mean_edge_length(mesh)))
+    return out
+
+
 def main() -> None:
     print("mesh | clean: sqrt(C0)/ℓ̄, lag-1, lag-2 correlation | independent noise: lag-1, lag-2")
     for name in MESHES:
@@ -53,6 +80,9 @@ def main() -> None:
         n = lag_covariances(clean, _normal_high_pass(clean, noise, normals) / g)
         print(f"{name} | {np.sqrt(c[0]):.4f}, {c[1] / c[0]:+.3f}, {c[2] / c[0]:+.3f} | "
               f"{n[1] / n[0]:+.3f}, {n[2] / n[0]:+.3f}")
+    print("\nmesh | the clean mesh's flat reading (ℓ̄) with K^1 .. K^6")
+    for name in MESHES:
+        print(f"{name} | " + " ".join(f"{r:.4f}" for r in order_readings(load_shared(name))), flush=True)
 
 
 if __name__ == "__main__":
