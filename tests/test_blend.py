@@ -7,7 +7,8 @@ import trimesh
 
 import jaxmesh
 from jaxmesh.tune import Candidate, choose_denoiser
-from jaxmesh.tune.blend import best_blend, blend_weight, tilt_gram
+from jaxmesh.tune.auto import _snapshots
+from jaxmesh.tune.blend import best_blend, best_mixture, blend_weight, mixture_weights, tilt_gram
 
 
 def _gram(rows):
@@ -48,6 +49,65 @@ def test_best_blend_blends_complementary_errors_and_keeps_a_clear_winner():
     assert rows == ((1, 1.0),) and risk == pytest.approx(small @ small)
 
 
+def _simplex_grid(k: int, steps: int) -> np.ndarray:
+    """Every w ≥ 0 with Σw = 1 on a grid of 1/steps (k = 3)."""
+    return np.array([(i, j, steps - i - j) for i in range(steps + 1) for j in range(steps + 1 - i)]) / steps
+
+
+def test_best_mixture_is_the_minimum_over_the_simplex_by_brute_force():
+    rng = np.random.default_rng(3)
+    grid = _simplex_grid(3, 400)
+    for trial in range(6):
+        shared = rng.standard_normal(40) * trial
+        t = rng.standard_normal((3, 40)) + shared                          # three correlated tilt fields
+        g = _gram(t)
+        rows, risk = best_mixture(g, winner=int(np.argmin(np.diag(g))), size=3)
+        values = np.einsum("nk,kl,nl->n", grid, g, grid)
+        assert risk <= values.min() + 1e-9                                  # never worse than the grid
+        assert risk == pytest.approx(values.min(), rel=2e-3)                # and the grid gets close to it
+        w = np.zeros(3)
+        for i, wi in rows:
+            w[i] = wi
+        assert w.sum() == pytest.approx(1.0) and np.all(w >= 0)
+        assert risk == pytest.approx(w @ g @ w, rel=1e-12)
+        assert [wi for _, wi in rows] == sorted((wi for _, wi in rows), reverse=True)
+
+
+def test_best_mixture_of_pairs_is_best_blend_and_more_rows_never_hurt():
+    rng = np.random.default_rng(4)
+    for trial in range(10):
+        g = _gram(rng.standard_normal((5, 30)) + rng.standard_normal(30))
+        winner = int(np.argmin(np.diag(g)))
+        pairs, pair_risk = best_blend(g, winner)
+        rows, risk = best_mixture(g, winner, size=2)
+        assert dict(rows) == pytest.approx(dict(pairs)) and risk == pytest.approx(pair_risk, rel=1e-12)
+        assert best_mixture(g, winner, size=4)[1] <= pair_risk + 1e-9
+        assert best_mixture(g, winner, size=1) == (((winner, 1.0),), float(g[winner, winner]))
+
+
+def test_mixture_weights_refuse_singular_and_boundary_sets():
+    u, v = np.eye(6)[0] * 3, np.eye(6)[1]                                   # u ⟂ v
+    g = _gram([u + v, u + v, -u + v])
+    assert mixture_weights(g, (0, 1)) is None                               # equal rows: singular
+    w, risk = mixture_weights(g, (0, 2))                                    # half each cancels u
+    assert w == pytest.approx([0.5, 0.5]) and risk == pytest.approx(v @ v)
+    assert mixture_weights(_gram([2 * u, u]), (0, 1)) is None               # the optimum w = (−1, 2) is outside
+    rows, risk = best_mixture(g, winner=0, size=3)                          # the singular sets are skipped
+    assert risk == pytest.approx(v @ v) and len(rows) == 2 and rows[0][1] == pytest.approx(0.5)
+    with pytest.raises(ValueError, match="size must be a positive int"):
+        best_mixture(g, 0, size=0)
+
+
+def test_snapshots_scale_the_path_leaders_counts_once_each():
+    leaders = [("guided_normal", {"sigma_r": 0.3}, 1.0), ("taubin", {"lam": 0.5, "iterations": 9}, 0.5),
+               ("bilateral_normal", {"sigma_s": 1.0, "iterations": 1}, 0.7)]
+    out = _snapshots(leaders[1:], (0.5, 2.0, 2.1), leaders)
+    assert [(m, p["iterations"]) for m, p, _ in out] == [("taubin", 4), ("taubin", 18), ("taubin", 19),
+                                                          ("bilateral_normal", 2)]
+    assert all(p["lam"] == 0.5 for m, p, _ in out if m == "taubin") and all(r is None for *_, r in out)
+    assert _snapshots(leaders[1:], (), leaders) == []
+
+
 def _noisy_box():
     b = trimesh.creation.box().subdivide().subdivide().subdivide()
     clean = jaxmesh.Mesh.from_arrays(b.vertices, b.faces).astype(jnp.float64)
@@ -64,10 +124,31 @@ def test_choose_denoiser_returns_what_its_components_make():
     assert sum(w for *_, w in c.components) == pytest.approx(1.0)
     want = sum(w * jaxmesh.denoise.denoise(noisy, m, **p).vertices for m, p, w in c.components)
     np.testing.assert_allclose(c.mesh.vertices, want, atol=1e-10)
-    assert (c.method == "blend") == (len(c.components) == 2)
+    assert (c.method == "blend") == (len(c.components) >= 2)
     assert [d["weight"] for d in c.summary()["components"]] == [w for *_, w in c.components]
     with pytest.raises(ValueError, match="blend_draws must be an int >= 0"):
         choose_denoiser(noisy, candidates=cands, paths=(), blend_draws=-1)
+    with pytest.raises(ValueError, match="blend_size must be an int >= 1"):
+        choose_denoiser(noisy, candidates=cands, paths=(), blend_size=0)
+    for bad in ((0.5, -1.0), (float("nan"),), (0.0,)):
+        with pytest.raises(ValueError, match="snapshots must be a sequence of positive numbers"):
+            choose_denoiser(noisy, candidates=cands, paths=(), snapshots=bad)
+
+
+def test_choose_denoiser_blends_snapshots_of_a_path():
+    """A Taubin path and one fixed candidate: up to three rows (its leader, two snapshots and the
+    candidate) mix, and the output is what the components make."""
+    noisy = _noisy_box()
+    path = jaxmesh.tune.SearchPath("taubin", ({"lam": 0.5, "mu": -0.53},), (), 12)
+    c = choose_denoiser(noisy, candidates=[Candidate("guided_normal", {})], paths=(path,), blend_draws=3,
+                        blend_size=3, snapshots=(0.5, 2.0))
+    assert 1 <= len(c.components) <= 3 and sum(w for *_, w in c.components) == pytest.approx(1.0)
+    want = sum(w * jaxmesh.denoise.denoise(noisy, m, **p).vertices for m, p, w in c.components)
+    np.testing.assert_allclose(c.mesh.vertices, want, atol=1e-10)
+    pairs = choose_denoiser(noisy, candidates=[Candidate("guided_normal", {})], paths=(path,), blend_draws=3,
+                            blend_size=2, snapshots=())
+    if len(c.components) > 1 and len(pairs.components) > 1:     # both blend: more rows, no larger estimate
+        assert c.risk <= pairs.risk + 1e-12
 
 
 def test_tilt_gram_matches_a_plain_loop():

@@ -39,7 +39,7 @@ import jaxmesh  # noqa: E402
 from jaxmesh.denoise import METHODS  # noqa: E402
 from jaxmesh.metrics import mean_normal_angle_error, visual_error  # noqa: E402
 from jaxmesh.tune import choose_denoiser, tune  # noqa: E402
-from jaxmesh.tune.blend import BLEND_DRAWS  # noqa: E402
+from jaxmesh.tune.blend import BLEND_DRAWS, BLEND_SIZE, SNAPSHOT_FACTORS  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from shared_meshes import load as load_shared  # noqa: E402
@@ -106,9 +106,10 @@ def local_oracle(clean, noisy) -> dict:
     return best
 
 
-def blind(clean, noisy, draws: int = 2, blend_draws: int = BLEND_DRAWS) -> dict:
+def blind(clean, noisy, draws: int = 2, blend_draws: int = BLEND_DRAWS, blend_size: int = BLEND_SIZE,
+          snapshots=SNAPSHOT_FACTORS) -> dict:
     start = time.perf_counter()
-    c = choose_denoiser(noisy, draws=draws, blend_draws=blend_draws)
+    c = choose_denoiser(noisy, draws=draws, blend_draws=blend_draws, blend_size=blend_size, snapshots=snapshots)
     return {"method": c.method, "params": c.params, "components": [list(x) for x in c.components],
             "improved": c.improved, "sigma_hat": c.sigma,
             "tangential_sigma": c.tangential_sigma,
@@ -194,11 +195,23 @@ def main() -> None:
     ap.add_argument("--blend-draws", type=int, default=BLEND_DRAWS,
                     help=f"the blind choice's blend draws (default {BLEND_DRAWS}, the library's; 0: no blending; "
                          "other values work as --draws, writing feature_table_blend{N}.{json,md})")
+    ap.add_argument("--blend-size", type=int, default=BLEND_SIZE,
+                    help=f"the most denoisers one blend mixes (default {BLEND_SIZE}, the library's; other values "
+                         "work as --draws, writing ..._size{N})")
+    ap.add_argument("--snapshots", nargs="*", type=float, default=list(SNAPSHOT_FACTORS),
+                    help=f"the path leaders' iteration multiples added to the blend (default "
+                         f"{' '.join(map(str, SNAPSHOT_FACTORS)) or 'none'}, the library's; other values work as --draws, "
+                         "writing ..._snap{F-G} or ..._snap0 for none)")
     args = ap.parse_args()
+    snaps = tuple(args.snapshots)
     RESULTS.mkdir(parents=True, exist_ok=True)
-    other = args.draws != 2 or args.blend_draws != BLEND_DRAWS
+    other = (args.draws != 2 or args.blend_draws != BLEND_DRAWS or args.blend_size != BLEND_SIZE
+             or snaps != SNAPSHOT_FACTORS)
+    snap_name = "-".join(f"{f:g}" for f in snaps) or "0"
     stem = ("feature_table" + (f"_draws{args.draws}" if args.draws != 2 else "")
-            + (f"_blend{args.blend_draws}" if args.blend_draws != BLEND_DRAWS else ""))
+            + (f"_blend{args.blend_draws}" if args.blend_draws != BLEND_DRAWS else "")
+            + (f"_size{args.blend_size}" if args.blend_size != BLEND_SIZE else "")
+            + (f"_snap{snap_name}" if snaps != SNAPSHOT_FACTORS else ""))
     path = RESULTS / f"{stem}.json"
     if other and not (args.report_only and path.exists()):     # the saved cells, with another blind column
         done = json.loads((RESULTS / "feature_table.json").read_text())
@@ -213,7 +226,7 @@ def main() -> None:
             clean = jaxmesh.normalize(load_shared(r["mesh"]))
             noisy = jaxmesh.add_noise(clean, r["sigma"], jax.random.PRNGKey(r["seed"]),
                                       along_normals=r["model"] == "normal")
-            r["blind"] = blind(clean, noisy, args.draws, args.blend_draws)
+            r["blind"] = blind(clean, noisy, args.draws, args.blend_draws, args.blend_size, snaps)
             print(f"{r['mesh']} {r['sigma']} {r['model']} seed {r['seed']}: auto {r['blind']['method']} "
                   f"{r['blind']['normal_deg']:.2f}", flush=True)
             path.write_text(json.dumps(done, indent=1))
@@ -247,7 +260,9 @@ def main() -> None:
                   f"auto {r['blind']['normal_deg']:.2f}", flush=True)
             path.write_text(json.dumps(done, indent=1))
     flags = ("" if not other else " --blind-only" + (f" --draws {args.draws}" if args.draws != 2 else "")
-             + (f" --blend-draws {args.blend_draws}" if args.blend_draws != BLEND_DRAWS else ""))
+             + (f" --blend-draws {args.blend_draws}" if args.blend_draws != BLEND_DRAWS else "")
+             + (f" --blend-size {args.blend_size}" if args.blend_size != BLEND_SIZE else "")
+             + (" --snapshots" + "".join(f" {f:g}" for f in snaps) if snaps != SNAPSHOT_FACTORS else ""))
     text = table(done["cells"], flags)
     text += ("\n## The headline case: fandisk, noise along the normals, σ = 0.3ℓ̄\n\n"
              "Oracle guided_normal: σ_s, σ_r tuned for each normal iteration count (20, 40) and tangential "

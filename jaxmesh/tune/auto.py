@@ -77,7 +77,10 @@ default (``PATHS``):
 
 **The decision.**  The candidate with the least estimate wins, unless a convex
 blend of two leaders (the best of each path and of each fixed method) is
-estimated better on fresh draws (:mod:`jaxmesh.tune.blend`).  It is compared
+estimated better on fresh draws (:mod:`jaxmesh.tune.blend`; ``blend_size``
+allows blends of more, ``snapshots`` adds the paths' leaders at other
+iteration counts: measured, not the default, as the mean angle did not
+follow the estimate).  It is compared
 with doing nothing, whose error at the same noise level is (1 + a²) tr(AᵀAΣ):
 if the choice does not beat it, ``improved`` is False and the caller must say
 so.  σ comes from :func:`~jaxmesh.tune.estimate_noise` unless given.
@@ -99,7 +102,7 @@ from jaxtyping import Array, Float
 from .._private import RECORRUPTION_STREAM, library_key, lift
 from ..geometry import face_normals, mean_edge_length, vertex_normals
 from ..mesh import Mesh
-from .blend import BLEND_DRAWS, BLEND_SALT, best_blend, tilt_gram
+from .blend import BLEND_DRAWS, BLEND_SALT, BLEND_SIZE, SNAPSHOT_FACTORS, best_mixture, tilt_gram
 from .noise_level import blind_caveats, estimate_tangential_noise, noise_sigma
 
 __all__ = ["Candidate", "CANDIDATES", "SearchPath", "PATHS", "NOISE_MODELS", "AutoResult", "edge_tilt", "choose_denoiser",
@@ -285,7 +288,7 @@ def _denoise(mesh: Mesh, x, candidate: Candidate, aux: dict):
 
 
 def _check(noisy: Mesh, candidates: Sequence[Candidate], paths: Sequence[SearchPath], draws, a, noise_model,
-           blend_draws=0) -> None:
+           blend_draws=0, blend_size=2, snapshots=()) -> None:
     from ..denoise import METHODS
 
     if not isinstance(noisy, Mesh):
@@ -306,9 +309,16 @@ def _check(noisy: Mesh, candidates: Sequence[Candidate], paths: Sequence[SearchP
         if c.method not in METHODS:
             raise ValueError(f"unknown method {c.method!r} in candidates; choose from {sorted(METHODS)}")
         METHODS[c.method].resolve(**c.params)
-    for name, value, least in (("draws", draws, 1), ("blend_draws", blend_draws, 0)):
+    for name, value, least in (("draws", draws, 1), ("blend_draws", blend_draws, 0),
+                               ("blend_size", blend_size, 1)):
         if isinstance(value, bool) or not isinstance(value, int) or value < least:
             raise ValueError(f"{name} must be an int >= {least}, got {value!r}")
+    try:
+        factors = [float(f) for f in snapshots]
+    except (TypeError, ValueError):
+        factors = [float("nan")]
+    if isinstance(snapshots, (str, bytes)) or not all(np.isfinite(f) and f > 0 for f in factors):
+        raise ValueError(f"snapshots must be a sequence of positive numbers, got {snapshots!r}")
     if not (np.isfinite(a) and a > 0):
         raise ValueError(f"a must be a positive number, got {a!r}")
     if noise_model not in NOISE_MODELS:
@@ -332,9 +342,24 @@ def _recorruptions(noisy: Mesh, nu, n, ell, s: float, s_t: float, draws: int, ke
     return zs, trace
 
 
+def _snapshots(path_leaders: list, factors: Sequence[float], have: list) -> list:
+    """Each path leader (method, params, risk) at ``iterations`` × each factor
+    (rounded, at least 1), for the blend's rows; those already in ``have`` are left out."""
+    seen = [(r[0], r[1]) for r in have]
+    out = []
+    for method, params, _ in path_leaders:
+        for f in factors:
+            p = {**params, "iterations": max(1, int(round(params["iterations"] * f)))}
+            if (method, p) not in seen:
+                seen.append((method, p))
+                out.append((method, p, None))
+    return out
+
+
 def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequence[Candidate] = CANDIDATES,
                     *, paths: Sequence[SearchPath] = PATHS, noise_model: str = "auto", draws: int = 2,
-                    blend_draws: int = BLEND_DRAWS, a: float = 0.5, key=0) -> AutoResult:
+                    blend_draws: int = BLEND_DRAWS, blend_size: int = BLEND_SIZE,
+                    snapshots: Sequence[float] = SNAPSHOT_FACTORS, a: float = 0.5, key=0) -> AutoResult:
     """Pick the candidate with the least recorrupted normal-error estimate
     (module docstring) and denoise ``noisy`` with it, blind.
 
@@ -349,6 +374,9 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
         draws: recorruptions per candidate.
         blend_draws: fresh recorruptions on which the blends of the leaders are fitted and judged
             (:mod:`jaxmesh.tune.blend`); 0: no blending.
+        blend_size: the most denoisers one blend mixes (1: no blending; 2: pairs).
+        snapshots: each search path's leader is also blended at these multiples of its
+            iteration count (``()``: the leaders alone).
         a: the recorruption strength.
         key: the key (or int seed) of the recorruptions.
 
@@ -357,7 +385,7 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
         denoised mesh, the table of estimated risks."""
     from ..denoise import METHODS
 
-    _check(noisy, candidates, paths, draws, a, noise_model, blend_draws)
+    _check(noisy, candidates, paths, draws, a, noise_model, blend_draws, blend_size, snapshots)
     s, estimated = noise_sigma(noisy, sigma)
     s_t = {"normal": 0.0, "isotropic": s}.get(noise_model)
     s_t = min(estimate_tangential_noise(noisy), s) if s_t is None else s_t
@@ -384,11 +412,12 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
         leaders.append(min(rows, key=lambda row: row[2]))
     table.sort(key=lambda row: row[2])
     components, risk = ((table[0][0], table[0][1], 1.0),), table[0][2]
-    if blend_draws and len(leaders) > 1:
-        gram = tilt_gram(leaders, _recorruptions(noisy, nu, n, ell, s, s_t, blend_draws, key, salt=BLEND_SALT)[0], tilt)
-        rows, total = best_blend(gram, next(i for i, r in enumerate(leaders) if r is table[0]))
-        if len(rows) == 2:
-            components = tuple((leaders[i][0], leaders[i][1], w) for i, w in rows)
+    rows = leaders + _snapshots(leaders[len(leaders) - len(paths):], snapshots, leaders)
+    if blend_draws and blend_size > 1 and len(rows) > 1:
+        gram = tilt_gram(rows, _recorruptions(noisy, nu, n, ell, s, s_t, blend_draws, key, salt=BLEND_SALT)[0], tilt)
+        mix, total = best_mixture(gram, next(i for i, r in enumerate(rows) if r is table[0]), blend_size)
+        if len(mix) > 1:
+            components = tuple((rows[i][0], rows[i][1], w) for i, w in mix)
             risk = total / noisy.num_faces / blend_draws - constant
     out = sum(w * _denoise(noisy, y, Candidate(m, p), auxes[m]) for m, p, w in components)
     method, params = (components[0][0], components[0][1]) if len(components) == 1 else ("blend", {})

@@ -1,4 +1,4 @@
-"""Blending two denoisers, with the weight chosen blind (aggregation).
+"""Blending denoisers, with the weights chosen blind (aggregation).
 
 Where two denoisers err differently, the average of their outputs can beat
 both: on the shared spot at 0.3ℓ̄ (isotropic noise) the oracle-tuned Taubin
@@ -34,6 +34,25 @@ winner's.  Over the 36 cells of ``feature_table.py`` (six meshes, σ ∈ {0.1,
 the estimate tracks the mean *squared* tilt, and a blend trades a few large
 angle errors for many small ones (fandisk 0.1ℓ̄ isotropic 1.55° → 1.62°,
 maxplanck 0.5ℓ̄ isotropic 9.44° → 9.67°).
+
+**Larger mixtures.**  The same estimate is the quadratic wᵀGw of any convex
+weights w over K denoisers (G_kl = Σ_draws ⟨T_k, T_l⟩), so
+:func:`best_mixture` takes its exact minimum over the blends of up to
+``size`` rows: a convex quadratic's minimum over the simplex lies inside
+one of its faces, where G_S w = ν1 (:func:`mixture_weights`), so the faces
+are enumerated.  ``choose_denoiser``'s ``snapshots`` adds each search path's
+leader at other iteration counts (a Taubin filter at t and 2t passes blends
+into another polynomial low-pass filter).  Measured and **not** the
+default: with up to four rows and snapshots at ½ and 2× the leader's count
+(``feature_table.py --blind-only --blend-size 4 --snapshots 0.5 2`` →
+``feature_table_size4_snap0.5-2.md``) the blind error fell in 16 of the 36
+cells and rose in 17 (mean −0.16%); below the oracle Taubin at σ ∈ {0.1,
+0.3}ℓ̄ in 16 of 24 (18 with pairs: spot 0.3ℓ̄ isotropic joined, 6.73° →
+6.59°; the cow at 0.1ℓ̄ isotropic, 10.29° → 10.56°, and the camelhead along
+the normals, 2.44° → 2.45° and 4.29° → 4.37°, left).  The estimate falls
+with every row added, but the mean angle does not follow: the larger the
+mixture, the more it fits the squared tilt's large errors (camelhead 0.5ℓ̄
+along the normals 5.66° → 6.27°).
 """
 
 from __future__ import annotations
@@ -43,12 +62,17 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-__all__ = ["BLEND_DRAWS", "blend_weight", "best_blend", "tilt_gram"]
+__all__ = ["BLEND_DRAWS", "BLEND_SIZE", "SNAPSHOT_FACTORS", "blend_weight", "best_blend", "mixture_weights",
+           "best_mixture", "tilt_gram"]
 
 #: fresh recorruptions on which the blend weights are fitted and the blend is judged
 BLEND_DRAWS = 6
 #: folded into the recorruption key for the blend's draws (the ranking's are unsalted)
 BLEND_SALT = 2
+#: the most denoisers one blend mixes (module docstring: larger mixtures measured worse, so pairs)
+BLEND_SIZE = 2
+#: the iteration counts, as multiples of its leader's, at which each search path is also blended (none by default)
+SNAPSHOT_FACTORS: tuple[float, ...] = ()
 
 
 def blend_weight(gram: np.ndarray, i: int, j: int) -> tuple[float, float]:
@@ -89,6 +113,58 @@ def best_blend(gram: np.ndarray, winner: int) -> tuple[tuple[tuple[int, float], 
     return best
 
 
+def mixture_weights(gram: np.ndarray, rows: Sequence[int]) -> tuple[np.ndarray, float] | None:
+    """The convex weights of the denoisers ``rows`` that minimise the blend's summed
+    squared tilt wᵀGw over the simplex's interior (w > 0, Σw = 1), by the Lagrange
+    condition G_S w = ν 1: w = G_S⁻¹1 / 1ᵀG_S⁻¹1; None where G_S is singular or
+    a weight comes out ≤ 0 (the optimum then lies on a face: a smaller set).
+
+    Arguments:
+        gram: (K, K) the Gram matrix of the tilts.
+        rows: the subset S of the denoisers, two or more.
+
+    Returns:
+        (w over S, wᵀG_S w), or None."""
+    g = np.asarray(gram, np.float64)[np.ix_(rows, rows)]
+    ones = np.ones(len(rows))
+    try:
+        v = np.linalg.solve(g, ones)
+    except np.linalg.LinAlgError:
+        return None
+    if not np.all(np.isfinite(v)) or v.sum() <= 0 or np.any(v <= 0):
+        return None
+    w = v / v.sum()
+    return w, float(w @ g @ w)
+
+
+def best_mixture(gram: np.ndarray, winner: int, size: int = BLEND_SIZE) -> tuple[tuple[tuple[int, float], ...], float]:
+    """The best of the single ``winner`` and every convex blend of two to ``size``
+    denoisers (Σw = 1, w > 0): the exact minimum of the quadratic wᵀGw over
+    those faces of the simplex, each face by :func:`mixture_weights` (a convex
+    quadratic's minimum over the simplex lies in the interior of one face).
+    With ``size=2`` it is :func:`best_blend`.
+
+    Arguments:
+        gram: (K, K) the Gram matrix of the K denoisers' recorrupted edge tilts, on the same draws.
+        winner: the row of the single winner the blends must beat.
+        size: the most denoisers in one blend (≥ 1; 1: the winner alone).
+
+    Returns:
+        ((row, weight), ...) of the choice, heaviest first (one row with weight 1.0, or
+        up to ``size`` rows whose weights sum to 1), and its summed squared tilt."""
+    g = np.asarray(gram, np.float64)
+    if isinstance(size, bool) or not isinstance(size, int) or size < 1:
+        raise ValueError(f"size must be a positive int, got {size!r}")
+    best: tuple = (((winner, 1.0),), float(g[winner, winner]))
+    for k in range(2, min(size, len(g)) + 1):
+        for rows in itertools.combinations(range(len(g)), k):
+            fit = mixture_weights(g, rows)
+            if fit is not None and fit[1] < best[1]:
+                order = np.argsort(-fit[0], kind="stable")
+                best = (tuple((rows[i], float(fit[0][i])) for i in order), fit[1])
+    return best
+
+
 def tilt_gram(rows: Sequence, zs, tilt: Callable) -> np.ndarray:
     """G_kl = Σ_d ⟨T_k(z_d), T_l(z_d)⟩: the Gram matrix of the recorrupted edge
     tilts of K denoisers over the draws z_d (module docstring; the blend's draws
@@ -106,3 +182,4 @@ def tilt_gram(rows: Sequence, zs, tilt: Callable) -> np.ndarray:
         t = np.stack([np.asarray(tilt(row, z), np.float64).ravel() for row in rows])
         gram += t @ t.T
     return gram
+
