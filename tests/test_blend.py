@@ -7,8 +7,7 @@ import trimesh
 
 import jaxmesh
 from jaxmesh.tune import Candidate, choose_denoiser
-from jaxmesh.tune.auto import _snapshots
-from jaxmesh.tune.blend import best_blend, best_mixture, blend_weight, mixture_weights, tilt_gram
+from jaxmesh.tune.blend import best_blend, best_mixture, blend_weight, mixture_weights, snapshot_rows, tilt_gram
 
 
 def _gram(rows):
@@ -101,11 +100,11 @@ def test_mixture_weights_refuse_singular_and_boundary_sets():
 def test_snapshots_scale_the_path_leaders_counts_once_each():
     leaders = [("guided_normal", {"sigma_r": 0.3}, 1.0), ("taubin", {"lam": 0.5, "iterations": 9}, 0.5),
                ("bilateral_normal", {"sigma_s": 1.0, "iterations": 1}, 0.7)]
-    out = _snapshots(leaders[1:], (0.5, 2.0, 2.1), leaders)
+    out = snapshot_rows(leaders[1:], (0.5, 2.0, 2.1), leaders)
     assert [(m, p["iterations"]) for m, p, _ in out] == [("taubin", 4), ("taubin", 18), ("taubin", 19),
                                                           ("bilateral_normal", 2)]
     assert all(p["lam"] == 0.5 for m, p, _ in out if m == "taubin") and all(r is None for *_, r in out)
-    assert _snapshots(leaders[1:], (), leaders) == []
+    assert snapshot_rows(leaders[1:], (), leaders) == []
 
 
 def _noisy_box():

@@ -60,27 +60,19 @@ default (``PATHS``):
   ``BILATERAL_PATH_FIXED["vertex_iterations"]`` vertex updates, repeated up to
   ``BILATERAL_PATH_MAX_ITERATIONS`` times, at σ_s × σ_r ∈
   ``BILATERAL_PATH_SIGMAS`` (smoothing settings); and one feature-preserving
-  setting, ``BILATERAL_FEATURE_SETTING``, up to
-  ``BILATERAL_FEATURE_MAX_ITERATIONS`` times.  Recomputing the normals from the
-  positions after every few vertex steps is what makes it beat Taubin on
+  setting, ``BILATERAL_FEATURE_SETTING``, up to ``BILATERAL_FEATURE_MAX_ITERATIONS``
+  times (why: the denoising guide).  Recomputing the normals from the positions
+  after every few vertex steps is what makes it beat Taubin on
   smooth scans: oracle-tuned, it is 0.6–7% below the oracle-tuned Taubin's
   normal error on spot, maxplanck and the bunny, and on the cow at 0.1ℓ̄
   (above it on the cow at 0.3ℓ̄, 1–3%, and on the camelhead, 8–15%), where
-  ten normal passes before the first vertex update (the fixed candidates)
-  are up to 49% worse than it (``experiments/denoise/feature_table.py``,
-  column *bilateral_local*).  The smoothing settings leave out σ_s = 2.5:
-  with it the choice was worse in three of the 16 cells of spot, cow,
-  maxplanck and bunny (cow 0.3ℓ̄ 15.88° → 16.20°), better in one.  The feature setting
-  took the fandisk at 0.3ℓ̄ isotropic noise from 6.00° to 3.64° and along the
-  normals from 3.04° to 3.30° (one seed), and changed no choice on the
-  other meshes.
+  ten normal passes before the first vertex update (the fixed candidates) are
+  up to 49% worse than it (``feature_table.py``, column *bilateral_local*).
 
 **The decision.**  The candidate with the least estimate wins, unless a convex
 blend of two leaders (the best of each path and of each fixed method) is
-estimated better on fresh draws (:mod:`jaxmesh.tune.blend`; ``blend_size``
-allows blends of more, ``snapshots`` adds the paths' leaders at other
-iteration counts: measured, not the default, as the mean angle did not
-follow the estimate).  It is compared
+estimated better on fresh draws (:mod:`jaxmesh.tune.blend`, which also
+measures larger blends: ``blend_size``, ``snapshots``).  It is compared
 with doing nothing, whose error at the same noise level is (1 + a²) tr(AᵀAΣ):
 if the choice does not beat it, ``improved`` is False and the caller must say
 so.  σ comes from :func:`~jaxmesh.tune.estimate_noise` unless given.
@@ -102,7 +94,8 @@ from jaxtyping import Array, Float
 from .._private import RECORRUPTION_STREAM, library_key, lift
 from ..geometry import face_normals, mean_edge_length, vertex_normals
 from ..mesh import Mesh
-from .blend import BLEND_DRAWS, BLEND_SALT, BLEND_SIZE, SNAPSHOT_FACTORS, best_mixture, tilt_gram
+from .blend import (BLEND_DRAWS, BLEND_SALT, BLEND_SIZE, SNAPSHOT_FACTORS, best_mixture, check_snapshots,
+                    snapshot_rows, tilt_gram)
 from .noise_level import blind_caveats, estimate_tangential_noise, noise_sigma
 
 __all__ = ["Candidate", "CANDIDATES", "SearchPath", "PATHS", "NOISE_MODELS", "AutoResult", "edge_tilt", "choose_denoiser",
@@ -309,16 +302,10 @@ def _check(noisy: Mesh, candidates: Sequence[Candidate], paths: Sequence[SearchP
         if c.method not in METHODS:
             raise ValueError(f"unknown method {c.method!r} in candidates; choose from {sorted(METHODS)}")
         METHODS[c.method].resolve(**c.params)
-    for name, value, least in (("draws", draws, 1), ("blend_draws", blend_draws, 0),
-                               ("blend_size", blend_size, 1)):
+    for name, value, least in (("draws", draws, 1), ("blend_draws", blend_draws, 0), ("blend_size", blend_size, 1)):
         if isinstance(value, bool) or not isinstance(value, int) or value < least:
             raise ValueError(f"{name} must be an int >= {least}, got {value!r}")
-    try:
-        factors = [float(f) for f in snapshots]
-    except (TypeError, ValueError):
-        factors = [float("nan")]
-    if isinstance(snapshots, (str, bytes)) or not all(np.isfinite(f) and f > 0 for f in factors):
-        raise ValueError(f"snapshots must be a sequence of positive numbers, got {snapshots!r}")
+    check_snapshots(snapshots)
     if not (np.isfinite(a) and a > 0):
         raise ValueError(f"a must be a positive number, got {a!r}")
     if noise_model not in NOISE_MODELS:
@@ -340,20 +327,6 @@ def _recorruptions(noisy: Mesh, nu, n, ell, s: float, s_t: float, draws: int, ke
     per_vertex = s_t**2 + (s**2 - s_t**2) * dots                                # Var(ν_f · z_v)
     trace = float(jnp.sum(per_vertex[:, [1, 2, 0]] + per_vertex[:, [2, 0, 1]]) / ell**2 / noisy.num_faces)
     return zs, trace
-
-
-def _snapshots(path_leaders: list, factors: Sequence[float], have: list) -> list:
-    """Each path leader (method, params, risk) at ``iterations`` × each factor
-    (rounded, at least 1), for the blend's rows; those already in ``have`` are left out."""
-    seen = [(r[0], r[1]) for r in have]
-    out = []
-    for method, params, _ in path_leaders:
-        for f in factors:
-            p = {**params, "iterations": max(1, int(round(params["iterations"] * f)))}
-            if (method, p) not in seen:
-                seen.append((method, p))
-                out.append((method, p, None))
-    return out
 
 
 def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequence[Candidate] = CANDIDATES,
@@ -412,7 +385,7 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
         leaders.append(min(rows, key=lambda row: row[2]))
     table.sort(key=lambda row: row[2])
     components, risk = ((table[0][0], table[0][1], 1.0),), table[0][2]
-    rows = leaders + _snapshots(leaders[len(leaders) - len(paths):], snapshots, leaders)
+    rows = leaders + snapshot_rows(leaders[len(leaders) - len(paths):], snapshots, leaders)
     if blend_draws and blend_size > 1 and len(rows) > 1:
         gram = tilt_gram(rows, _recorruptions(noisy, nu, n, ell, s, s_t, blend_draws, key, salt=BLEND_SALT)[0], tilt)
         mix, total = best_mixture(gram, next(i for i, r in enumerate(rows) if r is table[0]), blend_size)

@@ -63,7 +63,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 __all__ = ["BLEND_DRAWS", "BLEND_SIZE", "SNAPSHOT_FACTORS", "blend_weight", "best_blend", "mixture_weights",
-           "best_mixture", "tilt_gram"]
+           "best_mixture", "check_snapshots", "snapshot_rows", "tilt_gram"]
 
 #: fresh recorruptions on which the blend weights are fitted and the blend is judged
 BLEND_DRAWS = 6
@@ -163,6 +163,44 @@ def best_mixture(gram: np.ndarray, winner: int, size: int = BLEND_SIZE) -> tuple
                 order = np.argsort(-fit[0], kind="stable")
                 best = (tuple((rows[i], float(fit[0][i])) for i in order), fit[1])
     return best
+
+
+def check_snapshots(snapshots) -> None:
+    """Refuse ``snapshots`` unless it is a sequence of positive finite numbers.
+
+    Arguments:
+        snapshots: the iteration multiples of :func:`snapshot_rows`.
+
+    Returns:
+        None; raises ValueError naming the value."""
+    try:
+        factors = [float(f) for f in snapshots]
+    except (TypeError, ValueError):
+        factors = [float("nan")]
+    if isinstance(snapshots, (str, bytes)) or not all(np.isfinite(f) and f > 0 for f in factors):
+        raise ValueError(f"snapshots must be a sequence of positive numbers, got {snapshots!r}")
+
+
+def snapshot_rows(path_leaders: list, factors: Sequence[float], have: list) -> list:
+    """Each search path's leader at other iteration counts, as more rows to blend
+    (module docstring, *Larger mixtures*).
+
+    Arguments:
+        path_leaders: (method, params, risk) rows, each with ``params["iterations"]``.
+        factors: the multiples of each leader's count (rounded, at least 1).
+        have: rows already blended; a (method, params) among them is not repeated.
+
+    Returns:
+        (method, params, None) rows, leader by leader, factor by factor."""
+    seen = [(r[0], r[1]) for r in have]
+    out = []
+    for method, params, _ in path_leaders:
+        for f in factors:
+            p = {**params, "iterations": max(1, int(round(params["iterations"] * f)))}
+            if (method, p) not in seen:
+                seen.append((method, p))
+                out.append((method, p, None))
+    return out
 
 
 def tilt_gram(rows: Sequence, zs, tilt: Callable) -> np.ndarray:
