@@ -125,6 +125,21 @@ def test_denoise_auto_is_the_default_and_says_what_it_chose(capsys, tmp_path, sm
     np.testing.assert_allclose(jaxmesh.load(out).vertices, want.mesh.vertices, atol=1e-12)
     assert main(["denoise", noisy, str(tmp_path / "x.ply"), "--lam", "0.3"]) == 1
     assert "--lam needs a named method" in capsys.readouterr().err
+
+
+@pytest.mark.filterwarnings("ignore:1 isolated vertices:jaxmesh.mesh.MeshWarning")  # small_pair's far vertex
+def test_denoise_auto_passes_the_noise_model_on(capsys, tmp_path, small_pair, monkeypatch):
+    """--noise-model reaches the chooser (run here with one candidate and no paths or blends:
+    the full search is the test above)."""
+    import functools
+
+    import jaxmesh.cli.denoise as cli_denoise
+    from jaxmesh.tune import Candidate, choose_denoiser
+
+    small = functools.partial(choose_denoiser, candidates=[Candidate("taubin", {"iterations": 5})], paths=(),
+                              blend_draws=0)
+    monkeypatch.setattr(cli_denoise, "choose_denoiser", small)
+    noisy, _ = small_pair
     assert main(["denoise", noisy, str(tmp_path / "n.ply"), "--noise-model", "normal", "--json"]) == 0
     s = json.loads(capsys.readouterr().out)
     assert s["auto"]["tangential_noise_sigma"] == 0.0
