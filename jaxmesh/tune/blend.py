@@ -50,9 +50,9 @@ cells and rose in 17 (mean −0.16%); below the oracle Taubin at σ ∈ {0.1,
 0.3}ℓ̄ in 16 of 24 (18 with pairs: spot 0.3ℓ̄ isotropic joined, 6.73° →
 6.59°; the cow at 0.1ℓ̄ isotropic, 10.29° → 10.56°, and the camelhead along
 the normals, 2.44° → 2.45° and 4.29° → 4.37°, left).  The estimate falls
-with every row added, but the mean angle does not follow: the larger the
-mixture, the more it fits the squared tilt's large errors (camelhead 0.5ℓ̄
-along the normals 5.66° → 6.27°).
+with every row added, but the mean angle does not follow (camelhead 0.5ℓ̄
+along the normals 5.66° → 6.27°); a reading, not tested: the more rows, the
+more the weights chase the squared tilt's few large errors.
 """
 
 from __future__ import annotations
@@ -142,7 +142,7 @@ def best_mixture(gram: np.ndarray, winner: int, size: int = BLEND_SIZE) -> tuple
     denoisers (Σw = 1, w > 0): the exact minimum of the quadratic wᵀGw over
     those faces of the simplex, each face by :func:`mixture_weights` (a convex
     quadratic's minimum over the simplex lies in the interior of one face).
-    With ``size=2`` it is :func:`best_blend`.
+    With ``size=2`` it chooses what :func:`best_blend` chooses (rows heaviest first).
 
     Arguments:
         gram: (K, K) the Gram matrix of the K denoisers' recorrupted edge tilts, on the same draws.
