@@ -66,7 +66,13 @@ no estimator in this module separates the two).  Nor does a sharper high-pass
 leave less of it: with K^p for K², p = 2..6, the clean meshes' "flat" reading
 stays at 0.054–0.056ℓ̄ (cow), 0.028–0.031ℓ̄ (maxplanck), 0.018–0.021ℓ̄
 (fertility) (same script): no σ̂ of noise at 0.02ℓ̄ on them can fall in
-[0.8, 1.25] σ without knowing which part is the surface's.
+[0.8, 1.25] σ without knowing which part is the surface's.  Nor does the
+blind chooser's own output tell: with D_s the chooser run at an assumed level s,
+f(s) = √(σ̂(y)² − σ̂(D_s(y))²) should equal s at the true σ, but at 0.02ℓ̄ along
+the normals the fixed point is not unique (cow: f(s)/s = 1.33, 1.02, 1.10, 1.20
+at s = 0.015, 0.02, 0.03, 0.045ℓ̄, and s ← f(s) from σ̂ settles at 0.054ℓ̄;
+maxplanck and fandisk cross 1 three times between 0.005 and 0.045ℓ̄;
+``experiments/denoise/sigma_self_consistency.py``).
 """
 
 from __future__ import annotations
