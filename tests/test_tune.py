@@ -160,6 +160,7 @@ def test_batch_of_different_meshes_equals_tuning_each(spot_pair, blind):
         np.testing.assert_allclose(outs[k].vertices, one.mesh.vertices, atol=1e-10)
 
 
+@pytest.mark.slow   # batch = one-by-one is the default run's test above (different meshes, padded)
 def test_batch_of_noisy_copies_of_one_mesh(spot_pair):
     clean, _ = spot_pair
     copies = jaxmesh.add_noise(clean.with_vertices(jnp.stack([clean.vertices] * 2)), 0.3, 5)

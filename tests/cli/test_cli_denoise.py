@@ -109,16 +109,28 @@ def test_denoise_tune_every_continuous_parameter(capsys, tmp_path):
 
 
 @pytest.mark.filterwarnings("ignore:1 isolated vertices:jaxmesh.mesh.MeshWarning")  # small_pair's far vertex
-def test_denoise_auto_is_the_default_and_says_what_it_chose(capsys, tmp_path, small_pair):
+def test_denoise_auto_is_the_default_and_says_what_it_chose(capsys, tmp_path, small_pair, monkeypatch):
+    """The CLI's default is the library's choose_denoiser with its defaults (a spy records the
+    call: one full search, not two), its report is that result's, and its file is that mesh."""
     import jaxmesh
+    import jaxmesh.cli.denoise as cli_denoise
     from jaxmesh.tune import CANDIDATES, choose_denoiser
     from jaxmesh.tune.auto import PATHS
 
+    calls = []
+
+    def spy(*args, **kwargs):
+        calls.append((args, kwargs, choose_denoiser(*args, **kwargs)))
+        return calls[-1][2]
+
+    monkeypatch.setattr(cli_denoise, "choose_denoiser", spy)
     noisy, clean = small_pair
     out = str(tmp_path / "out.ply")
     assert main(["denoise", noisy, out, "--reference", clean, "--json"]) == 0
     s = json.loads(capsys.readouterr().out)
-    want = choose_denoiser(jaxmesh.load(noisy))
+    [(args, kwargs, want)] = calls
+    assert kwargs == {"sigma": None, "noise_model": "auto"}      # every other argument at the library's default
+    np.testing.assert_array_equal(args[0].vertices, jaxmesh.load(noisy).vertices)
     assert s["method"] == want.method and s["params"] == want.params
     assert s["auto"]["improved"] and len(s["auto"]["candidates"]) == len(CANDIDATES) + sum(
         len(p.settings) for p in PATHS)
