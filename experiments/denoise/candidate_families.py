@@ -41,7 +41,7 @@ jax.config.update("jax_enable_x64", True)
 import jax.numpy as jnp  # noqa: E402
 
 import jaxmesh  # noqa: E402
-from jaxmesh.denoise.laplacian import hc_smoothing  # noqa: E402
+from jaxmesh.denoise.laplacian import hc_step, smoothing_operator  # noqa: E402
 from jaxmesh.geometry import mean_edge_length  # noqa: E402
 from jaxmesh.mesh import MeshWarning  # noqa: E402
 from jaxmesh.metrics import mean_normal_angle_error  # noqa: E402
@@ -63,33 +63,28 @@ ORACLE_HC = {"alpha": (0.0, 0.05, 0.1, 0.2, 0.4), "beta": (0.3, 0.5, 0.7, 0.9)}
 ORACLE_HC_MAX_ITERATIONS = 80
 
 
+@jax.jit
+def _hc_errors(clean, noisy, alpha, beta):
+    """The mean normal error after every HC step 1..ORACLE_HC_MAX_ITERATIONS (α pulls towards
+    ``noisy``'s positions, so the scan carries them rather than calling HC once per count)."""
+    k = smoothing_operator(noisy, "free")
+
+    def step(q, _):
+        q = hc_step(k, noisy.vertices, q, alpha, beta)
+        return q, mean_normal_angle_error(clean, noisy.with_vertices(q))
+
+    return jax.lax.scan(step, noisy.vertices, None, length=ORACLE_HC_MAX_ITERATIONS)[1]
+
+
 def oracle_hc(clean, noisy) -> tuple[float, dict]:
     """The least mean normal error of HC over ORACLE_HC × every count up to ORACLE_HC_MAX_ITERATIONS."""
-    @jax.jit
-    def errors(alpha, beta):
-        # HC's α pulls towards its call's input, so the scan steps from the original positions itself
-        return jax.lax.scan(lambda x, _: _hc_from(noisy, x, alpha, beta, clean), noisy.vertices, None,
-                            length=ORACLE_HC_MAX_ITERATIONS)[1]
-
     best = (float("inf"), {})
     for a, b in itertools.product(*ORACLE_HC.values()):
-        e = errors(a, b)
+        e = _hc_errors(clean, noisy, a, b)
         t = int(jnp.argmin(e))
         if float(e[t]) < best[0]:
             best = (float(e[t]), {"alpha": a, "beta": b, "iterations": t + 1})
     return best
-
-
-def _hc_from(noisy, q, alpha, beta, clean):
-    """One HC step from q with the original positions of ``noisy`` (Vollmer et al.'s b uses them)."""
-    from jaxmesh.denoise.laplacian import smoothing_operator
-
-    k = smoothing_operator(noisy, "free")
-    o = noisy.vertices
-    p = q + k(q)
-    b = p - (alpha * o + (1 - alpha) * q)
-    q = p - (beta * b + (1 - beta) * (b + k(b)))
-    return q, mean_normal_angle_error(clean, noisy.with_vertices(q))
 
 
 def variants() -> dict:
@@ -105,10 +100,10 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--cells", nargs="*", default=[f"{m}:{s}:{n}" for m, s, n in CELLS])
     args = ap.parse_args()
-    names = list(variants())
-    saved = json.loads(FEATURE_TABLE.read_text())
+    runs = variants()
+    names = list(runs)
     oracle_taubin = {(r["mesh"], r["sigma"], r["model"]): r["oracle"]["taubin"]["normal_deg"]
-                     for r in (saved if isinstance(saved, list) else saved["cells"])}
+                     for r in json.loads(FEATURE_TABLE.read_text())["cells"]}
     lines = ["# Blind auto with wider candidate families, and with the true σ", "",
              "Regenerate: `.venv/bin/python experiments/denoise/candidate_families.py` (needs ../shared/meshes).", "",
              "Mean face-normal error (degrees), seed 0, the cells of `feature_table.md` where blind auto is above "
@@ -126,7 +121,7 @@ def main() -> None:
         taubin = oracle_taubin.get((name, sigma, model), float("nan"))
         hc_err, hc_params = oracle_hc(clean, noisy)
         row = []
-        for label, kw in variants().items():
+        for label, kw in runs.items():
             start = time.perf_counter()
             kw = dict(kw)
             if kw.pop("true_sigma", False):

@@ -63,7 +63,7 @@ def smoothing_operator(mesh: Mesh, boundary: str = "free"):
 
     return op
 
-__all__ = ["laplacian_smoothing", "taubin_smoothing", "hc_smoothing"]
+__all__ = ["laplacian_smoothing", "taubin_smoothing", "hc_smoothing", "hc_step"]
 
 
 def laplacian_smoothing(mesh: Mesh, lam=0.5, iterations: int = 10, boundary: str = "free") -> Mesh:
@@ -117,10 +117,22 @@ def hc_smoothing(mesh: Mesh, alpha=0.1, beta=0.5, iterations: int = 10, boundary
     alpha = lift(jnp.asarray(alpha, mesh.dtype)[..., None, None], mesh.vertices.ndim)
     beta = lift(jnp.asarray(beta, mesh.dtype)[..., None, None], mesh.vertices.ndim)
     o = mesh.vertices
+    return mesh.with_vertices(iterate(lambda q: hc_step(k, o, q, alpha, beta), o, iterations))
 
-    def step(q):
-        p = q + k(q)
-        b = p - (alpha * o + (1 - alpha) * q)
-        return p - (beta * b + (1 - beta) * (b + k(b)))
 
-    return mesh.with_vertices(iterate(step, o, iterations))
+def hc_step(k, o, q, alpha, beta):
+    """One HC step (module docstring): p = q + K q, b = p − (α o + (1 − α) q),
+    q ← p − (β b + (1 − β)(b + K b)).
+
+    Arguments:
+        k: the smoothing operator x ↦ K x (:func:`smoothing_operator`).
+        o: the original positions, (*batch, V, 3).
+        q: the previous positions, (*batch, V, 3).
+        alpha: α, broadcastable against the positions.
+        beta: β, broadcastable against the positions.
+
+    Returns:
+        The next positions, (*batch, V, 3)."""
+    p = q + k(q)
+    b = p - (alpha * o + (1 - alpha) * q)
+    return p - (beta * b + (1 - beta) * (b + k(b)))
