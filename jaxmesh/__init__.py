@@ -23,7 +23,7 @@ from .geometry import (
 )
 from .io import MeshFileError, load, save
 from .mesh import Mesh, MeshWarning
-from .noise import add_noise
+from .noise import add_impulsive_noise, add_noise
 from .topology import mesh_info
 from .transforms import normalize
 
@@ -52,6 +52,7 @@ __all__ = [
     "load",
     "save",
     "add_noise",
+    "add_impulsive_noise",
     "normalize",
     "mesh_info",
     "edge_vectors",

@@ -20,19 +20,42 @@ and aborts on a flag it does not know: :func:`prefer_fast_cpu_compiles` adds the
 flag only before that point, only for the jaxlib versions it was measured with,
 and never over a setting of the user's.  The ``jaxmesh`` command calls it first
 thing; ``JAXMESH_XLA_DEFAULTS=1`` keeps XLA's own defaults.
+
+**The persistent compilation cache.**  Most of a short command's time is XLA
+compiling programs that then run for milliseconds, and a new process compiles
+them all again.  :func:`enable_compilation_cache` turns on JAX's own persistent
+cache (``jax_compilation_cache_dir``): every program whose compile took at least
+:data:`CACHE_MIN_COMPILE_SECONDS` is written to disk, keyed by the program, the
+compile options, the XLA flags and the jax/jaxlib versions, and later processes
+load it instead of compiling.  The ``jaxmesh`` command turns it on for every run,
+in :func:`default_cache_dir` (``$JAXMESH_CACHE_DIR``, else
+``$XDG_CACHE_HOME/jaxmesh/jax``, else ``~/.cache/jaxmesh/jax``), at most
+:data:`CACHE_MAX_BYTES` (least recently used entries are evicted).
+``JAXMESH_CACHE_DIR=off`` (or ``--no-cache``) turns it off; deleting the folder
+empties it.
 """
 
 from __future__ import annotations
 
+import math
 import os
 import sys
+import warnings
+from pathlib import Path
 
-__all__ = ["prefer_fast_cpu_compiles", "CPU_COMPILE_FLAG", "MEASURED_JAXLIB"]
+__all__ = ["prefer_fast_cpu_compiles", "CPU_COMPILE_FLAG", "MEASURED_JAXLIB", "enable_compilation_cache",
+           "default_cache_dir", "CACHE_MIN_COMPILE_SECONDS", "CACHE_MAX_BYTES", "CACHE_OFF"]
 
 #: the flag added to XLA_FLAGS
 CPU_COMPILE_FLAG = "--xla_cpu_use_fusion_emitters=false"
 #: jaxlib (major, minor) versions where the flag was measured (older or newer ones are left alone)
 MEASURED_JAXLIB = ((0, 10),)
+#: programs that compiled faster than this are not written to the persistent cache
+CACHE_MIN_COMPILE_SECONDS = 0.0
+#: the persistent cache's size limit (least recently used entries are evicted past it)
+CACHE_MAX_BYTES = 1 << 30
+#: values of ``JAXMESH_CACHE_DIR`` that turn the persistent cache off
+CACHE_OFF = ("off", "0", "none", "false", "no")
 
 
 def _backend_started() -> bool:
@@ -65,3 +88,59 @@ def prefer_fast_cpu_compiles() -> bool:
         return False
     os.environ["XLA_FLAGS"] = f"{flags} {CPU_COMPILE_FLAG}".strip()
     return True
+
+
+def default_cache_dir() -> Path | None:
+    """The persistent compilation cache's folder (module docstring), or None when
+    ``JAXMESH_CACHE_DIR`` turns it off.
+
+    Arguments:
+
+    Returns:
+        ``$JAXMESH_CACHE_DIR``, else ``$XDG_CACHE_HOME/jaxmesh/jax``, else
+        ``~/.cache/jaxmesh/jax``; None for ``JAXMESH_CACHE_DIR=off`` (or ``0``, ``none``,
+        ``false``, ``no``, or empty)."""
+    env = os.environ.get("JAXMESH_CACHE_DIR")
+    if env is not None:
+        return None if env.strip().lower() in CACHE_OFF + ("",) else Path(env).expanduser()
+    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(base) / "jaxmesh" / "jax"
+
+
+def enable_compilation_cache(path: str | os.PathLike | None = None, *,
+                             min_compile_seconds: float = CACHE_MIN_COMPILE_SECONDS,
+                             max_bytes: int = CACHE_MAX_BYTES) -> Path | None:
+    """Turn on JAX's persistent compilation cache in ``path`` (module docstring), for
+    every program compiled from then on in this process.
+
+    Arguments:
+        path: the cache folder (created if missing); None: :func:`default_cache_dir`.
+        min_compile_seconds: programs that compiled faster than this are not cached.
+        max_bytes: the cache's size limit; the least recently used entries are evicted past it.
+
+    Returns:
+        The folder in use, or None when the cache stays off (``path`` None and
+        ``JAXMESH_CACHE_DIR=off``, or a folder that cannot be created or written, in which
+        case a :class:`UserWarning` says why)."""
+    import jax
+
+    if not (min_compile_seconds >= 0 and math.isfinite(min_compile_seconds)):
+        raise ValueError(f"min_compile_seconds must be a finite number >= 0, got {min_compile_seconds!r}")
+    if isinstance(max_bytes, bool) or not isinstance(max_bytes, int) or max_bytes < 1:
+        raise ValueError(f"max_bytes must be a positive int, got {max_bytes!r}")
+    folder = default_cache_dir() if path is None else Path(path).expanduser()
+    if folder is None:
+        return None
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        if not os.access(folder, os.W_OK | os.X_OK):
+            raise PermissionError(13, "not writable", str(folder))
+    except OSError as err:
+        warnings.warn(f"the compilation cache stays off: {folder}: {err.strerror or err}", UserWarning,
+                      stacklevel=2)
+        return None
+    jax.config.update("jax_compilation_cache_dir", str(folder))
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", float(min_compile_seconds))
+    jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+    jax.config.update("jax_compilation_cache_max_size", int(max_bytes))
+    return folder

@@ -26,6 +26,10 @@ if os.environ.get("JAXMESH_TEST_XLA_OPTIMIZE") != "1":
                                " --xla_cpu_use_fusion_emitters=false").strip()
 
 os.environ["JAX_NUMPY_RANK_PROMOTION"] = "raise"
+# The CLI's persistent compilation cache stays off in the tests (in-process CLI calls would
+# turn it on for the whole worker and write under the user's home); tests/test_compiler.py
+# checks it in subprocesses with a folder of their own.
+os.environ["JAXMESH_CACHE_DIR"] = "off"
 # One BLAS / OpenMP thread per process: pytest-xdist runs one worker per core, and the
 # host solvers (CHOLMOD through cholespy, LAPACK) otherwise start a thread per core in
 # every worker, whose spinning threads slow the other worker down (a CLI test went from

@@ -38,3 +38,65 @@ def test_a_fresh_process_gets_the_flag_and_xla_accepts_it():
         assert lines[1] == "6.0"
         return
     assert lines == ["True", "6.0", compiler.CPU_COMPILE_FLAG, "False"]
+
+
+def test_default_cache_dir_follows_the_environment(monkeypatch, tmp_path):
+    monkeypatch.setenv("JAXMESH_CACHE_DIR", str(tmp_path / "c"))
+    assert compiler.default_cache_dir() == tmp_path / "c"
+    for off in ("off", "0", "NONE", "", " no "):
+        monkeypatch.setenv("JAXMESH_CACHE_DIR", off)
+        assert compiler.default_cache_dir() is None
+        assert compiler.enable_compilation_cache() is None
+    monkeypatch.delenv("JAXMESH_CACHE_DIR")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    assert compiler.default_cache_dir() == tmp_path / "xdg" / "jaxmesh" / "jax"
+    monkeypatch.delenv("XDG_CACHE_HOME")
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    assert compiler.default_cache_dir() == tmp_path / "home" / ".cache" / "jaxmesh" / "jax"
+
+
+def test_enable_compilation_cache_refuses_bad_settings_and_warns_on_a_bad_folder(tmp_path):
+    import pytest
+
+    with pytest.raises(ValueError, match="min_compile_seconds"):
+        compiler.enable_compilation_cache(tmp_path, min_compile_seconds=float("nan"))
+    with pytest.raises(ValueError, match="max_bytes"):
+        compiler.enable_compilation_cache(tmp_path, max_bytes=0)
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    with pytest.warns(UserWarning, match="compilation cache stays off"):
+        assert compiler.enable_compilation_cache(blocker / "sub") is None
+
+
+def _cli(args, env):
+    return subprocess.run([sys.executable, "-m", "jaxmesh", *args], env=env, capture_output=True, text=True,
+                          timeout=300)
+
+
+def _entries(folder):
+    return sorted(p.name for p in folder.iterdir() if p.name.endswith("-cache"))
+
+
+def test_the_cli_writes_the_cache_then_reads_it_and_no_cache_leaves_it_alone(tmp_path):
+    cache = tmp_path / "cache"
+    env = {**os.environ, "JAXMESH_CACHE_DIR": str(cache)}
+    out = tmp_path / "n.ply"
+    first = _cli(["noise", "--sample", "spot", str(out), "--sigma", "0.2"], env)
+    assert first.returncode == 0, first.stderr
+    written = _entries(cache)
+    assert written                                      # programs were written
+    first_bytes = out.read_bytes()
+    second = _cli(["noise", "--sample", "spot", str(out), "--sigma", "0.2", "--force"], env)
+    assert second.returncode == 0, second.stderr
+    assert out.read_bytes() == first_bytes              # the cached programs give the same file
+    assert _entries(cache) == written                   # every program was found: none compiled anew
+    # --no-cache, and JAXMESH_CACHE_DIR=off: no folder made, nothing written
+    other = tmp_path / "other"
+    run = _cli(["--no-cache", "noise", "--sample", "spot", str(tmp_path / "m.ply"), "--sigma", "0.2"],
+               {**os.environ, "JAXMESH_CACHE_DIR": str(other)})
+    assert run.returncode == 0, run.stderr
+    assert not other.exists()
+    run = _cli(["noise", "--sample", "spot", str(tmp_path / "m.ply"), "--sigma", "0.2", "--force"],
+               {**os.environ, "JAXMESH_CACHE_DIR": "off", "HOME": str(other), "XDG_CACHE_HOME": str(other)})
+    assert run.returncode == 0, run.stderr
+    assert not other.exists()

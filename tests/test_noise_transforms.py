@@ -46,3 +46,38 @@ def test_normalize(spot):
     np.testing.assert_allclose(jaxmesh.normalize(spot).vertices, n.vertices, atol=1e-12)
     point = spot.with_vertices(jnp.zeros_like(spot.vertices) + 2.0)
     np.testing.assert_array_equal(jaxmesh.normalize(point).vertices, 0.0)  # no 0/0
+
+
+def test_impulsive_noise_moves_a_fraction_along_the_normals(spot):
+    ell = float(jaxmesh.mean_edge_length(spot))
+    n = jaxmesh.vertex_normals(spot, "area")
+    noisy = jaxmesh.add_impulsive_noise(spot, 0.5, 4, fraction=0.3)
+    eta = np.asarray(noisy.vertices - spot.vertices)
+    moved = np.linalg.norm(eta, axis=1) > 0
+    # Bernoulli(0.3) per vertex: within 4 standard deviations of p V
+    nv = spot.num_vertices
+    assert abs(moved.sum() - 0.3 * nv) < 4 * np.sqrt(0.3 * 0.7 * nv)
+    np.testing.assert_allclose(np.cross(eta, np.asarray(n)), 0, atol=1e-12)   # along the normals
+    xi = np.sum(eta * np.asarray(n), axis=1)[moved]
+    assert xi.std() == pytest.approx(0.5 * ell, rel=0.08)
+    # the same key's full-fraction noise moves the chosen vertices by the same amount
+    full = jaxmesh.add_noise(spot, 0.5, 4, along_normals=True)
+    np.testing.assert_array_equal(noisy.vertices[moved], full.vertices[moved])
+    np.testing.assert_array_equal(noisy.vertices[~moved], spot.vertices[~moved])
+    # fraction 1 is the Gaussian model exactly, fraction 0 moves nothing
+    np.testing.assert_array_equal(jaxmesh.add_noise(spot, 0.5, 4, along_normals=True, fraction=1.0).vertices,
+                                  full.vertices)
+    np.testing.assert_array_equal(jaxmesh.add_impulsive_noise(spot, 0.5, 4, fraction=0.0).vertices,
+                                  spot.vertices)
+    with pytest.raises(ValueError, match="fraction"):
+        jaxmesh.add_noise(spot, 0.5, 4, fraction=1.5)
+
+
+def test_impulsive_noise_is_jittable_in_the_fraction_and_differentiable_in_sigma(spot):
+    f = jax.jit(lambda p, s: jaxmesh.add_noise(spot, s, 2, along_normals=True, fraction=p).vertices)
+    np.testing.assert_allclose(f(0.4, 0.3), jaxmesh.add_impulsive_noise(spot, 0.3, 2, fraction=0.4).vertices,
+                               rtol=0, atol=1e-14)
+    g = jax.grad(lambda s: jnp.sum(jaxmesh.add_impulsive_noise(spot, s, 2, fraction=0.4).vertices ** 2))(0.3)
+    h = 1e-6
+    fd = (jnp.sum(f(0.4, 0.3 + h) ** 2) - jnp.sum(f(0.4, 0.3 - h) ** 2)) / (2 * h)
+    assert float(g) == pytest.approx(float(fd), rel=1e-6)

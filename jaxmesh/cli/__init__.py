@@ -9,7 +9,9 @@ machine output, one JSON object per line), diagnostics on stderr prefixed with
 2 on a usage error, 130 on Ctrl-C.  Output files are never overwritten without
 ``--force``.  Every command runs with 64-bit floats (files are never rounded), and
 with :func:`jaxmesh.compiler.prefer_fast_cpu_compiles`'s XLA setting unless
-``JAXMESH_XLA_DEFAULTS=1``.
+``JAXMESH_XLA_DEFAULTS=1``.  Compiled programs are kept between runs in JAX's
+persistent compilation cache (:func:`jaxmesh.compiler.enable_compilation_cache`;
+``--no-cache`` or ``JAXMESH_CACHE_DIR=off`` for none).
 """
 
 from __future__ import annotations
@@ -33,6 +35,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     parser = argparse.ArgumentParser(prog="jaxmesh", description="Differentiable triangle-mesh processing (JAX).")
     parser.add_argument("--version", action="version", version=f"jaxmesh {__version__}")
+    parser.add_argument("--no-cache", action="store_true",
+                        help="do not read or write the persistent compilation cache "
+                             "(default folder: $JAXMESH_CACHE_DIR, else ~/.cache/jaxmesh/jax)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name, module in COMMANDS.items():
         p = sub.add_parser(name, help=module.HELP, description=module.HELP)
@@ -62,4 +67,8 @@ def main(argv: list[str] | None = None) -> int:
     with warnings.catch_warnings():
         warnings.simplefilter("default")
         warnings.showwarning = _show_warning
+        if not args.no_cache:
+            from ..compiler import enable_compilation_cache
+
+            enable_compilation_cache()
         return run_command(args._run, args)

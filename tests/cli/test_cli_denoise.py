@@ -267,3 +267,22 @@ def test_two_processes_with_jax_distributed_equal_one(tmp_path):
         assert (tmp_path / "one" / name).read_bytes() == (tmp_path / "two" / name).read_bytes()
 
 
+
+
+def test_noise_impulsive_model(capsys, tmp_path):
+    import jaxmesh
+
+    out = str(tmp_path / "imp.ply")
+    assert main(["noise", "--sample", "spot", out, "--sigma", "0.5", "--model", "impulsive", "--fraction", "0.3",
+                 "--seed", "2"]) == 0
+    assert "impulsive noise (fraction 0.3) sigma=0.5" in capsys.readouterr().err
+    spot = jaxmesh.data.load_sample("spot", dtype=np.float64)
+    expect = jaxmesh.add_impulsive_noise(spot, 0.5, 2, fraction=0.3)
+    np.testing.assert_allclose(jaxmesh.load(out).vertices, expect.vertices, rtol=0, atol=1e-12)
+    bad = str(tmp_path / "bad.ply")
+    assert main(["noise", "--sample", "spot", bad, "--model", "impulsive", "--fraction", "1.5"]) == 1
+    assert "--fraction must be in [0, 1]" in capsys.readouterr().err
+    assert main(["noise", "--sample", "spot", bad, "--fraction", "0.5"]) == 1
+    assert "--fraction applies to --model impulsive only" in capsys.readouterr().err
+    assert main(["noise", "--sample", "spot", bad, "--sigma", "inf"]) == 1
+    assert not (tmp_path / "bad.ply").exists()
