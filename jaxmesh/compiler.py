@@ -6,7 +6,7 @@ fused loops with the MLIR "fusion emitters" by default; the older elemental
 emitters, selected by ``--xla_cpu_use_fusion_emitters=false``, compile jaxmesh's
 programs in about half the time.  How fast the programs then run depends on
 the program (``benchmarks/bench_xla_flags.py``, bunny, float64, 2 cores,
-Session 13; steady state, default → flag): the umbrella flow 150 → 107 ms,
+steady state, default → flag): the umbrella flow 150 → 107 ms,
 Taubin 242 → 219 ms, the kernel flow 486 → 299 ms, bilateral normal filtering
 1.20 → 1.00 s, a loop of 16 kernel-flow calls 647 → 419 ms, but a vmapped
 batch of those 16 meshes 820 → 998 ms.  (``benchmarks/bench_denoise.py`` in
