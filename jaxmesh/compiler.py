@@ -55,7 +55,7 @@ CACHE_MIN_COMPILE_SECONDS = 0.0
 #: the persistent cache's size limit (least recently used entries are evicted past it)
 CACHE_MAX_BYTES = 1 << 30
 #: values of ``JAXMESH_CACHE_DIR`` that turn the persistent cache off
-CACHE_OFF = ("off", "0", "none", "false", "no")
+CACHE_OFF = ("off", "0", "none", "false", "no", "")
 
 
 def _backend_started() -> bool:
@@ -102,7 +102,7 @@ def default_cache_dir() -> Path | None:
         ``false``, ``no``, or empty)."""
     env = os.environ.get("JAXMESH_CACHE_DIR")
     if env is not None:
-        return None if env.strip().lower() in CACHE_OFF + ("",) else Path(env).expanduser()
+        return None if env.strip().lower() in CACHE_OFF else Path(env).expanduser()
     base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
     return Path(base) / "jaxmesh" / "jax"
 

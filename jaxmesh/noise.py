@@ -17,8 +17,10 @@ from jaxtyping import Array, Float
 from .geometry import mean_edge_length, vertex_normals
 from .mesh import Mesh
 
-__all__ = ["add_noise", "add_impulsive_noise", "IMPULSIVE_MASK_STREAM"]
+__all__ = ["add_noise", "add_impulsive_noise", "IMPULSIVE_FRACTION", "IMPULSIVE_MASK_STREAM"]
 
+#: the impulsive model's default probability that a vertex is displaced
+IMPULSIVE_FRACTION = 0.5
 #: folded into the key for the impulsive mask b (the displacements ξ use the key itself)
 IMPULSIVE_MASK_STREAM = 1
 
@@ -71,7 +73,7 @@ def add_noise(mesh: Mesh, sigma: float | Float[Array, "..."], key, *, along_norm
 
 
 def add_impulsive_noise(mesh: Mesh, sigma: float | Float[Array, "..."], key,
-                        fraction: float | Float[Array, ""] = 0.5, *, relative: bool = True) -> Mesh:
+                        fraction: float | Float[Array, ""] = IMPULSIVE_FRACTION, *, relative: bool = True) -> Mesh:
     """Impulsive noise (module docstring): each vertex, with probability ``fraction``,
     moved along its area-weighted normal by ξ ~ N(0, σ²), σ = sigma · ℓ̄; the others
     untouched.  ``add_noise(mesh, sigma, key, along_normals=True, fraction=fraction)``.

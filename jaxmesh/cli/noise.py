@@ -3,17 +3,16 @@
 
 from __future__ import annotations
 
+import math
 import sys
 
 from ..io import save
-from ..noise import add_noise
+from ..noise import IMPULSIVE_FRACTION, add_noise
 from ._common import CLIError, check_output, io_arguments, load_input, positional_output
 
 HELP = "add Gaussian or impulsive noise to a mesh"
 #: --model's choices
 MODELS = ("gaussian", "impulsive")
-#: --fraction's default for --model impulsive
-IMPULSIVE_FRACTION = 0.5
 
 
 def configure(p) -> None:
@@ -33,7 +32,7 @@ def configure(p) -> None:
 
 def run(args) -> int:
     out = positional_output(args)
-    if not args.sigma >= 0 or args.sigma == float("inf"):
+    if not (math.isfinite(args.sigma) and args.sigma >= 0):
         raise CLIError(f"--sigma must be a finite number >= 0, got {args.sigma}")
     if args.fraction is not None and args.model != "impulsive":
         raise CLIError("--fraction applies to --model impulsive only")
