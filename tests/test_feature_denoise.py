@@ -339,12 +339,12 @@ def test_the_recorruption_has_the_covariance_its_trace_assumes(sphere, ratio):
     mean of ‖A z‖²/F over many draws of the recorruption z, and z's normal and
     tangential variances are σ² and 2σ_t² per vertex."""
     from jaxmesh.geometry import face_normals, mean_edge_length, vertex_normals
-    from jaxmesh.tune.auto import _recorruptions
+    from jaxmesh.tune.recorrupt import recorruptions
 
     mesh = jaxmesh.add_noise(sphere, 0.1, 4)
     nu, n = face_normals(sphere), vertex_normals(sphere, "area")
     ell, s = mean_edge_length(mesh), 0.01
-    zs, trace = _recorruptions(mesh, nu, n, ell, s, ratio * s, 4000, 7)
+    zs, trace = recorruptions(mesh, nu, n, ell, s, ratio * s, 4000, 7)
     r = edge_tilt(mesh, nu, ell, zs)
     assert float(jnp.mean(jnp.sum(r * r, axis=(-2, -1)))) / mesh.num_faces == pytest.approx(trace, rel=0.02)
     normal = jnp.sum(zs * n[None], axis=-1)
@@ -365,7 +365,7 @@ def test_the_noise_model_sets_the_recorruptions_tangential_part():
     assert 0.0 < auto.tangential_sigma <= auto.sigma and auto.summary()["tangential_noise_sigma"] == auto.tangential_sigma
     assert iso.noisy_risk > along.noisy_risk          # the tangential part adds to the input's error
     with pytest.raises(ValueError, match="noise_model must be one of"):
-        choose_denoiser(noisy, candidates=few, noise_model="gaussian")
+        choose_denoiser(noisy, candidates=few, noise_model="laplacian")
 
 
 def test_library_draws_never_reproduce_the_users_noise():

@@ -65,12 +65,17 @@ def report_auto(args, label, out, mesh, reference, choice, caveats, seconds) -> 
     else:
         what = f"{choice.method} {_settings(choice.params)}"
     print(f"{label} -> {out}: auto chose {what} ({seconds:.2f} s)")
-    model = {"auto": "estimated", "normal": "noise along the normals", "isotropic": "isotropic noise"}[
-        args.noise_model or "auto"]
-    print(f"  noise sigma {choice.sigma:.4g} ({'estimated' if choice.estimated else 'given'}), "
-          f"{choice.tangential_sigma:.4g} within the surface ({model}); estimated RMS "
-          f"normal error {choice.rms_tilt_degrees:.2f}° vs {summary['auto']['noisy_rms_normal_error_deg']:.2f}° "
-          "for the input (recorrupted estimate, both at 1.12x the noise)")
+    if choice.noise_law == "impulsive":
+        print(f"  impulsive noise: {choice.fraction:.0%} of the vertices displaced along their normals, sigma "
+              f"{choice.sigma:.4g} ({'estimated' if choice.estimated else 'given'}); recorrupted estimate under "
+              f"that law {choice.risk:.3g} vs {choice.noisy_risk:.3g} for the input (a ranking: its level is biased)")
+    else:
+        model = {"auto": "estimated", "normal": "noise along the normals", "isotropic": "isotropic noise"}[
+            args.noise_model or "auto"]
+        print(f"  noise sigma {choice.sigma:.4g} ({'estimated' if choice.estimated else 'given'}), "
+              f"{choice.tangential_sigma:.4g} within the surface ({model}); estimated RMS "
+              f"normal error {choice.rms_tilt_degrees:.2f}° vs {summary['auto']['noisy_rms_normal_error_deg']:.2f}° "
+              "for the input (recorrupted estimate, both at 1.12x the noise)")
     if choice.method == "blend":
         best = choice.table[0]
         print(f"  best single setting: {best[0]} {_settings(best[1])} (estimate {best[2]:.3g}; the blend's, on "

@@ -42,8 +42,10 @@ def configure(p) -> None:
     p.add_argument("--noise-sigma", type=float, metavar="S",
                    help="noise standard deviation in the file's units, for blind tuning (default: estimated)")
     p.add_argument("--noise-model", choices=NOISE_MODELS, default=None,
-                   help="--method auto: the noise within the surface, for the recorrupted estimate: 'normal' "
-                        "(noise along the normals), 'isotropic', or 'auto' (default: estimated from the mesh)")
+                   help="--method auto: the noise law of the recorrupted estimate: 'normal' (Gaussian along "
+                        "the normals), 'isotropic' (Gaussian), 'impulsive' (a fraction of the vertices displaced "
+                        "along their normals), or 'auto' (default: impulsive if the mesh reads so, else Gaussian "
+                        "with the noise within the surface estimated)")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     view_argument(p, "the input and the result (and --reference, colouring both by the distance to it)")
     p.epilog = ("Method parameters are flags named after them (--lam, --iterations, --mu, ...). "

@@ -6,7 +6,9 @@ mesh, a batch of meshes in one vmapped call, or one setting shared by a
 training set.  See :mod:`jaxmesh.tune.tuner` for the search.
 """
 
-from .auto import CANDIDATES, NOISE_MODELS, PATHS, AutoResult, Candidate, SearchPath, choose_denoiser, edge_tilt
+from .auto import (CANDIDATES, IMPULSIVE_CANDIDATES, NOISE_MODELS, PATHS, AutoResult, Candidate, SearchPath,
+                   choose_denoiser, edge_tilt)
+from .impulsive import ImpulsiveNoise, estimate_impulsive_noise
 from .noise_level import (
     LOW_NOISE,
     NOISE_ESTIMATORS,
@@ -29,7 +31,8 @@ __all__ = [
     "AUTO", "DenoiseRun", "denoise_with_tuning", "split_auto",
     "estimate_noise", "estimate_tangential_noise", "noise_sigma", "umbrella_square_row_norms", "NOISE_ESTIMATORS",
     "blind_caveats", "BlindTuningWarning", "LOW_NOISE",
-    "choose_denoiser", "AutoResult", "Candidate", "CANDIDATES", "SearchPath", "PATHS", "NOISE_MODELS", "edge_tilt",
+    "choose_denoiser", "AutoResult", "Candidate", "CANDIDATES", "IMPULSIVE_CANDIDATES", "SearchPath", "PATHS",
+    "NOISE_MODELS", "edge_tilt", "estimate_impulsive_noise", "ImpulsiveNoise",
     "OBJECTIVES", "relative_error", "sure_visual_error", "noisy_visual_error_expectation",
     "Coordinate", "search_space",
 ]

@@ -48,31 +48,9 @@ human at 0.3ℓ̄ along the normals, where the noisy normals tilt the projection
 **"min"** (the default): the smaller of "flat" and "umbrella".  Both count the
 surface's own detail as noise, so each over-reads; the smaller over-reads less.
 
-Measured (``experiments/denoise/noise_estimate.py`` →
-``experiments/results/denoise/noise_estimate.md``, σ̂/σ on eight shared meshes,
-both noise models, seed 0), "min": 0.95–1.06 at 0.3ℓ̄, 0.99–1.28 at 0.1ℓ̄;
-at 0.02ℓ̄ mean |log σ̂/σ| is 0.40 ("min", "flat"), 0.52 ("umbrella"), 0.65
-("quadric"), with noise along the normals: camelhead 1.01, fandisk 1.21, spot
-1.21, human 1.29, fertility 1.46, bunny 1.52, maxplanck 1.94, cow 3.07.  The
-same column on the *clean* meshes explains the rest: the cow reads 0.055ℓ̄ of
-its own vertex-scale roughness, maxplanck 0.029ℓ̄, fertility 0.019ℓ̄ (scans),
-so noise of 0.02ℓ̄ on them is √(1 + (0.055/0.02)²) ≈ 2.9 times less than what
-the mesh itself carries at that scale.  Nor does that roughness differ from
-noise in its spatial correlation, which an estimator could have used: the
-correlation of z_i between neighbours is −0.30 for independent noise and
-−0.05 (cow), −0.18 (maxplanck), −0.14 (fertility), −0.06 (fandisk) on the
-clean meshes, +0.10 on the human (``experiments/denoise/roughness_correlation.py``;
-no estimator in this module separates the two).  Nor does a sharper high-pass
-leave less of it: with K^p for K², p = 2..6, the clean meshes' "flat" reading
-stays at 0.054–0.056ℓ̄ (cow), 0.028–0.031ℓ̄ (maxplanck), 0.018–0.021ℓ̄
-(fertility) (same script): no σ̂ of noise at 0.02ℓ̄ on them can fall in
-[0.8, 1.25] σ without knowing which part is the surface's.  Nor does the
-blind chooser's own output tell: with D_s the chooser run at an assumed level s,
-f(s) = √(σ̂(y)² − σ̂(D_s(y))²) should equal s at the true σ, but at 0.02ℓ̄ along
-the normals the fixed point is not unique (cow: f(s)/s = 1.33, 1.02, 1.10, 1.20
-at s = 0.015, 0.02, 0.03, 0.045ℓ̄, and s ← f(s) from σ̂ settles at 0.054ℓ̄;
-maxplanck and fandisk cross 1 three times between 0.005 and 0.045ℓ̄;
-``experiments/denoise/sigma_self_consistency.py``).
+How each reads on the shared meshes (σ̂/σ at 0.02–0.3ℓ̄, both noise models,
+the clean meshes' own roughness, and what did not separate roughness from
+noise): the denoising guide and ``experiments/denoise/noise_estimate.py``.
 """
 
 from __future__ import annotations

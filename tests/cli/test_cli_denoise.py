@@ -160,6 +160,36 @@ def test_denoise_auto_passes_the_noise_model_on(capsys, tmp_path, small_pair, mo
     assert "within the surface (isotropic noise)" in capsys.readouterr().out
     assert main(["denoise", noisy, str(tmp_path / "t.ply"), "--method", "taubin", "--noise-model", "normal"]) == 1
     assert "--noise-model applies to --method auto" in capsys.readouterr().err
+    assert main(["denoise", noisy, str(tmp_path / "f.ply"), "--noise-model", "impulsive", "--json"]) == 0
+    s = json.loads(capsys.readouterr().out)
+    assert s["auto"]["noise_law"] == "impulsive" and s["auto"]["tangential_noise_sigma"] == 0.0
+
+
+def test_denoise_auto_reads_impulsive_noise_and_says_so(capsys, tmp_path, monkeypatch):
+    """A mesh made with `jaxmesh noise --model impulsive` is read as impulsive by the default
+    command, which reports the fraction it read and ranks the robust candidates too."""
+    import functools
+
+    import jaxmesh.cli.denoise as cli_denoise
+    from jaxmesh.tune import Candidate, choose_denoiser
+
+    small = functools.partial(choose_denoiser, candidates=[Candidate("taubin", {"iterations": 5})], paths=(),
+                              impulsive_candidates=[Candidate("l0", {"iterations": 8})], blend_draws=0)
+    monkeypatch.setattr(cli_denoise, "choose_denoiser", small)
+    import trimesh
+
+    ball = trimesh.creation.icosphere(4)                       # 2562 vertices: the decision needs 1000
+    clean = str(tmp_path / "ball.ply")
+    jaxmesh.save(jaxmesh.Mesh.from_arrays(ball.vertices, ball.faces), clean)
+    spiky = str(tmp_path / "spiky.ply")
+    assert main(["noise", clean, spiky, "--model", "impulsive", "--sigma", "0.5", "--fraction", "0.5"]) == 0
+    capsys.readouterr()
+    assert main(["denoise", spiky, str(tmp_path / "d.ply"), "--json"]) == 0
+    s = json.loads(capsys.readouterr().out)
+    assert s["auto"]["noise_law"] == "impulsive" and 0.4 < s["auto"]["noise_fraction"] < 0.6
+    assert {c["method"] for c in s["auto"]["candidates"]} == {"taubin", "l0"}
+    assert main(["denoise", spiky, str(tmp_path / "e.ply")]) == 0
+    assert "impulsive noise:" in capsys.readouterr().out
 
 
 @pytest.mark.filterwarnings("ignore:1 isolated vertices:jaxmesh.mesh.MeshWarning")  # small_pair's far vertex

@@ -1,0 +1,134 @@
+"""The families :func:`~jaxmesh.tune.choose_denoiser` searches over their
+outer-iteration count, in one compiled scan per setting.
+
+The recorrupted inputs are denoised one iteration at a time and the estimate
+(:mod:`jaxmesh.tune.recorrupt`) is read after every iteration, so every count
+costs no more than the largest (:class:`SearchPath`).  Searched by default
+(``PATHS``):
+
+* *Taubin*: λ ∈ ``TAUBIN_LAMS`` × pass band k_PB ∈ ``TAUBIN_PASS_BANDS``
+  (μ = λ / (k_PB λ − 1), so μ ≤ −λ) × every count up to
+  ``TAUBIN_MAX_ITERATIONS``.  λ stays at or below 1/√2: a pair's gain
+  (1 − λk)(1 − μk) at the top of the umbrella spectrum (k = 2, μ ≈ −λ) is
+  1 − 4λ², below −1 for larger λ, so those modes would grow with every pass.
+* *Bilateral normal filtering, the local iterative scheme* (Zheng et al.
+  2011): each iteration is one filtering pass of the face normals and
+  ``BILATERAL_PATH_FIXED["vertex_iterations"]`` vertex updates, repeated up to
+  ``BILATERAL_PATH_MAX_ITERATIONS`` times, at σ_s × σ_r ∈
+  ``BILATERAL_PATH_SIGMAS`` (smoothing settings); and one feature-preserving
+  setting, ``BILATERAL_FEATURE_SETTING``, up to
+  ``BILATERAL_FEATURE_MAX_ITERATIONS`` times.
+
+Why these grids, and what they were measured against: the denoising guide.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import itertools
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..mesh import Mesh
+from .recorrupt import edge_tilt
+
+__all__ = ["SearchPath", "PATHS", "TAUBIN_LAMS", "TAUBIN_PASS_BANDS", "TAUBIN_MAX_ITERATIONS", "taubin_mu",
+           "BILATERAL_PATH_SIGMAS", "BILATERAL_PATH_FIXED", "BILATERAL_PATH_MAX_ITERATIONS",
+           "BILATERAL_FEATURE_SETTING", "BILATERAL_FEATURE_MAX_ITERATIONS", "path_rows"]
+
+#: the Taubin path's grid (module docstring): shrinking steps λ, pass bands k_PB, and every count up to the last
+TAUBIN_LAMS = (0.2, 0.35, 0.5, 0.7)
+TAUBIN_PASS_BANDS = (0.0, 0.03, 0.1)
+TAUBIN_MAX_ITERATIONS = 100
+#: the bilateral path (module docstring): (σ_s, σ_r) settings, the statics of one iteration, the last count
+BILATERAL_PATH_SIGMAS = tuple(itertools.product((1.0, 1.5), (0.6, 1.0, 2.0)))
+BILATERAL_PATH_FIXED = {"normal_iterations": 1, "vertex_iterations": 5}
+BILATERAL_PATH_MAX_ITERATIONS = 16
+#: the feature-preserving setting of the local scheme (wide σ_s, narrow σ_r), searched up to a higher count
+BILATERAL_FEATURE_SETTING = {"sigma_s": 2.5, "sigma_r": 0.35}
+BILATERAL_FEATURE_MAX_ITERATIONS = 24
+
+
+def taubin_mu(lam: float, pass_band: float) -> float:
+    """μ with pass-band frequency k_PB = 1/λ + 1/μ (Taubin 1995): μ = λ / (k_PB λ − 1).
+
+    Arguments:
+        lam: λ > 0.
+        pass_band: k_PB ≥ 0.
+
+    Returns:
+        μ < −λ."""
+    return lam / (pass_band * lam - 1)
+
+
+@dataclasses.dataclass(frozen=True)
+class SearchPath:
+    """A family :func:`~jaxmesh.tune.choose_denoiser` searches over its outer-iteration count:
+    ``method`` with the parameters ``fixed`` and each of ``settings``, read after
+    every iteration 1..``max_iterations`` in one scan (module docstring).  The
+    method must take ``iterations`` and satisfy method(x, iterations=k + 1) =
+    method(method(x, iterations=k), iterations=1)."""
+
+    method: str
+    settings: tuple
+    fixed: tuple = ()
+    max_iterations: int = 100
+
+
+#: the paths searched by default: Taubin, and the bilateral normal filter's local iterative scheme
+#: (smoothing settings, and one feature-preserving setting)
+PATHS: tuple[SearchPath, ...] = (
+    SearchPath("taubin", tuple({"lam": lam, "mu": taubin_mu(lam, kpb)} for lam in TAUBIN_LAMS
+                         for kpb in TAUBIN_PASS_BANDS), (), TAUBIN_MAX_ITERATIONS),
+    SearchPath("bilateral_normal", tuple({"sigma_s": ss, "sigma_r": sr} for ss, sr in BILATERAL_PATH_SIGMAS),
+               tuple(BILATERAL_PATH_FIXED.items()), BILATERAL_PATH_MAX_ITERATIONS),
+    SearchPath("bilateral_normal", (BILATERAL_FEATURE_SETTING,), tuple(BILATERAL_PATH_FIXED.items()),
+               BILATERAL_FEATURE_MAX_ITERATIONS),
+)
+
+
+@functools.partial(jax.jit, static_argnames=("method", "statics", "count"))
+def _path_risks(mesh: Mesh, inputs, targets, nu, ell, continuous: dict, aux: dict, method: str, statics: tuple,
+                count: int):
+    """Mean edge-tilt risk Σ‖A(x_t − target)‖²/F over the draws after every
+    iteration t = 1..count of one setting: shape (count,).  ``inputs``,
+    ``targets``: (D, V, 3)."""
+    from ..denoise import METHODS
+
+    def step(x, _):
+        x = METHODS[method](mesh.with_vertices(x), **continuous, **dict(statics), iterations=1, **aux).vertices
+        r = edge_tilt(mesh, nu, ell, x - targets)                                    # (D, F, 3)
+        return x, jnp.mean(jnp.sum(r * r, axis=(-2, -1))) / mesh.num_faces
+
+    return jax.lax.scan(step, inputs, None, length=count)[1]
+
+
+def path_rows(mesh: Mesh, path: SearchPath, inputs, targets, nu, ell, aux: dict, constant: float) -> list:
+    """(method, params, risk) for the best count of every setting of ``path``.
+
+    Arguments:
+        mesh: the noisy mesh (single).
+        path: the family.
+        inputs: the recorrupted inputs ŷ, (D, V, 3).
+        targets: the targets ỹ, (D, V, 3).
+        nu: the pilot's unit face normals, (F, 3).
+        ell: the mean edge length ℓ̄.
+        aux: the method's prepared arrays.
+        constant: the noise constant subtracted from every estimate.
+
+    Returns:
+        One row per setting."""
+    from ..denoise import METHODS
+
+    rows = []
+    for setting in path.settings:
+        cont, statics = METHODS[path.method].split(**setting, **dict(path.fixed))
+        statics = tuple(kv for kv in statics if kv[0] != "iterations")
+        risk = np.asarray(_path_risks(mesh, inputs, targets, nu, ell, cont, aux, path.method, statics,
+                                      path.max_iterations))
+        t = int(np.argmin(risk))
+        rows.append((path.method, {**setting, **dict(path.fixed), "iterations": t + 1}, float(risk[t]) - constant))
+    return rows

@@ -1,0 +1,84 @@
+"""The recorrupted normal-error estimate that ranks denoisers blind.
+
+**The error.**  For a displacement field u (V, 3) and fixed unit face normals
+ν_f, let
+
+    (A u)_{f,e} = ν_f · (u_b − u_c) / ℓ̄     for the three edges e = (b, c) of f,
+
+the tilt of face f's edges out of the plane ν_f, in radians for small u.  With
+u = f(y) − x, ‖A u‖²/F approximates the mean squared face-normal angle error
+(A is linear in u and does not depend on triangle shapes, unlike the
+hat-function gradient, whose 1/height blows up on slivers).  ν_f are the face
+normals of a pilot estimate, held fixed.
+
+**The estimate** (recorrupted-to-recorrupted, Pang et al. 2021).  With noise
+y = x + η, η ~ N(0, Σ), draw z ~ N(0, Σ) and set ŷ = y + a z, ỹ = y − z / a.
+ŷ − x and ỹ − x are independent Gaussians (their covariance is Σ − Σ = 0), so
+
+    E ‖A(f(ŷ) − ỹ)‖² = E ‖A(f(ŷ) − x)‖² + (1 + 1/a²) tr(AᵀAΣ):
+
+the left side, computed from the noisy mesh alone, minus a known constant is
+an unbiased estimate of the error of f at the noise level σ√(1 + a²), for any
+denoiser f, differentiable or not.  Σ is block diagonal, split along the
+vertex normals n_i: Σ_i = s_i² n_i n_iᵀ + σ_t² (I − n_i n_iᵀ), with one s_i = σ
+for Gaussian noise, or each vertex's own level for impulsive noise
+(:mod:`jaxmesh.tune.impulsive`).
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Float
+
+from .._private import RECORRUPTION_STREAM, library_key, lift
+from ..mesh import Mesh
+
+__all__ = ["edge_tilt", "recorruptions"]
+
+
+def edge_tilt(mesh: Mesh, nu: Float[Array, "F 3"], ell, u: Float[Array, "*batch V 3"]) -> Float[Array, "*batch F 3"]:
+    """(A u)_{f,e} = ν_f · (u_b − u_c) / ℓ̄ for the edges (b, c) opposite each corner (module docstring).
+
+    Arguments:
+        mesh: a single mesh.
+        nu: unit face normals, (F, 3).
+        ell: the mean edge length ℓ̄.
+        u: a displacement field, (*batch, V, 3).
+
+    Returns:
+        (*batch, F, 3)."""
+    h = jnp.sum(u[..., mesh.faces, :] * lift(nu[:, None, :], u.ndim + 1), axis=-1)       # (*b, F, 3)
+    return (h[..., [1, 2, 0]] - h[..., [2, 0, 1]]) / ell
+
+
+def recorruptions(noisy: Mesh, nu, n, ell, s, s_t: float, draws: int, key, salt: int = 0):
+    """``draws`` fields z ~ N(0, Σ_i = s_i² n_i n_iᵀ + s_t² (I − n_i n_iᵀ)) and the trace
+    tr(AᵀAΣ)/F of the module docstring (each edge difference sees its two vertices).
+
+    Arguments:
+        noisy: the noisy mesh (single).
+        nu: the pilot's unit face normals, (F, 3).
+        n: the pilot's unit vertex normals, (V, 3).
+        ell: the mean edge length ℓ̄.
+        s: the normal noise level, one σ or each vertex's s_i, (V,).
+        s_t: the noise level within the surface, per tangential axis (at most min s_i).
+        draws: how many fields.
+        key: the key (or int seed) of the draws.
+        salt: nonzero draws an independent set.
+
+    Returns:
+        (z (draws, V, 3), tr(AᵀAΣ)/F)."""
+    y = noisy.vertices
+    k = library_key(key, RECORRUPTION_STREAM)
+    k = jax.random.fold_in(k, salt) if salt else k
+    s_v = jnp.asarray(np.broadcast_to(np.asarray(s, dtype=np.float64), (noisy.num_vertices,)), y.dtype)
+    zs = s_v[None, :, None] * jax.random.normal(k, (draws, noisy.num_vertices, 1), y.dtype) * n[None]
+    if s_t > 0:
+        xi = jax.random.normal(jax.random.fold_in(k, 1), (draws, noisy.num_vertices, 3), y.dtype)
+        zs = zs + s_t * (xi - jnp.sum(xi * n[None], axis=-1, keepdims=True) * n[None])
+    dots = jnp.sum(nu[:, None, :] * n[noisy.faces], axis=-1) ** 2                # (F, 3)
+    per_vertex = s_t**2 + (s_v[noisy.faces] ** 2 - s_t**2) * dots               # Var(ν_f · z_v)
+    trace = float(jnp.sum(per_vertex[:, [1, 2, 0]] + per_vertex[:, [2, 0, 1]]) / ell**2 / noisy.num_faces)
+    return zs, trace
