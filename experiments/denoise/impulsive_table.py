@@ -8,7 +8,8 @@ moved along its clean area-weighted normal by N(0, σ²), σ = 0.5ℓ̄; the oth
 untouched; meshes scaled to a unit bounding-box diagonal.  Cells:
 {fandisk, camelhead, maxplanck, bunny} × p = 0.5 on seeds 0, 1, 2 and
 p ∈ {0.1, 0.3} on seed 0.  Oracles as in ``feature_table.py`` (the tuner with
-the clean mesh in hand, objective "normal"; L0's λ from a grid).  Blind:
+the clean mesh in hand, objective "normal"; L0's λ from a grid), and impulse
+repair's best of ``REPAIR_GRID``.  Blind:
 ``choose_denoiser`` with its defaults (no clean mesh, the noise law read from
 the mesh).  The targets: blind ≤ 1.25× the best oracle and ≤ 0.5× the
 oracle Taubin in every cell.
@@ -34,12 +35,15 @@ from jaxmesh.tune import choose_denoiser  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from feature_table import ORACLE, choice, errors, oracle  # noqa: E402
+from feature_table import ORACLE as FEATURE_ORACLE, choice, errors, oracle as feature_oracle  # noqa: E402
 from shared_meshes import load as load_shared  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parents[2] / "experiments" / "results" / "denoise"
 MESHES = ("fandisk", "camelhead", "maxplanck", "bunny")
 SIGMA = 0.5
+ORACLE = FEATURE_ORACLE + ("impulse_repair",)
+#: the impulse-repair oracle's grid: α × rounds (α₀ at its default)
+REPAIR_GRID = {"alpha": (0.1, 0.3, 1.0, 3.0), "iterations": (5, 10)}
 #: (fraction, seed) of every cell of a mesh
 SETTINGS = ((0.5, 0), (0.5, 1), (0.5, 2), (0.3, 0), (0.1, 0))
 
@@ -56,6 +60,17 @@ def blind(clean, noisy) -> dict:
     return {"method": c.method, "params": c.params, "components": [list(x) for x in c.components],
             "noise_law": c.noise_law, "fraction_hat": c.fraction, "sigma_hat_ell": c.sigma / ell,
             **errors(clean, c.mesh), "seconds": round(time.perf_counter() - start, 1)}
+
+
+def oracle(name: str, clean, noisy) -> dict:
+    """feature_table's oracles, and impulse repair's: the best of REPAIR_GRID by normal error."""
+    if name != "impulse_repair":
+        return feature_oracle(name, clean, noisy)
+    start = time.perf_counter()
+    rows = [({"alpha": a, "iterations": k}, errors(clean, jaxmesh.denoise.denoise(noisy, name, alpha=a, iterations=k)))
+            for a in REPAIR_GRID["alpha"] for k in REPAIR_GRID["iterations"]]
+    params, err = min(rows, key=lambda r: r[1]["normal_deg"])
+    return {"params": params, **err, "seconds": round(time.perf_counter() - start, 1)}
 
 
 def cell(name: str, fraction: float, seed: int, methods) -> dict:
@@ -97,18 +112,29 @@ def main() -> None:
     ap.add_argument("--resume", action="store_true", help="keep the saved cells, run the missing ones")
     ap.add_argument("--blind-only", action="store_true", help="recompute the blind column of the saved cells")
     ap.add_argument("--oracles", nargs="*", default=list(ORACLE), choices=ORACLE)
+    ap.add_argument("--fractions", nargs="*", type=float, default=None,
+                    help="only the settings with these fractions (default: all of SETTINGS)")
     args = ap.parse_args()
     path = RESULTS / "impulsive_table.json"
     done = json.loads(path.read_text()) if (args.resume or args.blind_only) and path.exists() else {"cells": []}
     if args.blind_only:
         for r in done["cells"]:
+            if args.meshes and r["mesh"] not in args.meshes:
+                continue
             r["blind"] = blind(*noisy_pair(r["mesh"], r["fraction"], r["seed"]))
             print(r["mesh"], r["fraction"], r["seed"], "auto", r["blind"]["normal_deg"], flush=True)
+            path.write_text(json.dumps(done, indent=1))
+    for r in done["cells"]:                     # oracle columns added since the cell was run
+        missing = [m for m in args.oracles if m not in r["oracle"]]
+        if missing:
+            clean, noisy = noisy_pair(r["mesh"], r["fraction"], r["seed"])
+            r["oracle"].update({m: oracle(m, clean, noisy) for m in missing})
+            print(r["mesh"], r["fraction"], r["seed"], "oracle", missing, flush=True)
             path.write_text(json.dumps(done, indent=1))
     have = {(r["mesh"], r["fraction"], r["seed"]) for r in done["cells"]}
     for name in args.meshes:
         for fraction, seed in SETTINGS:
-            if (name, fraction, seed) in have or args.blind_only:
+            if (name, fraction, seed) in have or args.blind_only or (args.fractions and fraction not in args.fractions):
                 continue
             r = cell(name, fraction, seed, tuple(args.oracles))
             done["cells"].append(r)

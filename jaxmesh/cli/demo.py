@@ -1,5 +1,6 @@
-"""``jaxmesh demo``: noise the shipped bunny, denoise it with the kernel flow and
-Taubin smoothing, print the errors before and after, write the four meshes."""
+"""``jaxmesh demo``: noise the shipped bunny, denoise it with the kernel flow, Taubin
+smoothing and the blind default (``jaxmesh denoise`` without ``--method``), print the
+errors before and after, write the meshes."""
 
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ from ._common import check_output
 
 HELP = "denoise the shipped bunny and print the errors before and after"
 NAMES = {"clean": "bunny_clean.ply", "noisy": "bunny_noisy.ply", "kernel": "bunny_kernel.ply",
-         "taubin": "bunny_taubin.ply"}
+         "taubin": "bunny_taubin.ply", "auto": "bunny_auto.ply"}
 
 
 def configure(p) -> None:
@@ -24,11 +25,27 @@ def configure(p) -> None:
     p.add_argument("--sigma", type=float, default=0.3, help="noise, in mean edge lengths (default 0.3)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--force", action="store_true", help="replace existing output files")
+    p.add_argument("--no-auto", action="store_true",
+                   help="leave out the blind default (its search takes most of the demo's time)")
+
+
+def _auto(noisy):
+    """The blind default's result and its label."""
+    import warnings
+
+    from ..tune import BlindTuningWarning, choose_denoiser
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", BlindTuningWarning)     # the demo prints its errors
+        choice = choose_denoiser(noisy)
+    what = choice.method if choice.method != "blend" else " + ".join(m for m, _, _ in choice.components)
+    return f"auto, blind ({what})", choice.mesh
 
 
 def run(args) -> int:
     out = Path(args.out)
-    for f in NAMES.values():
+    names = {k: v for k, v in NAMES.items() if not (args.no_auto and k == "auto")}
+    for f in names.values():
         check_output(str(out / f), args.force)
     out.mkdir(parents=True, exist_ok=True)
     clean = normalize(data.load_sample("bunny", dtype="float64"))
@@ -40,15 +57,20 @@ def run(args) -> int:
         res.vertices.block_until_ready()
         ps = " ".join(f"{k}={v}" for k, v in METHODS[name].defaults().items() if k in ("lam", "mu", "iterations"))
         rows.append((f"{name} ({ps})", res, time.perf_counter() - t))
-    for key, mesh in zip(NAMES, (clean, noisy, rows[1][1], rows[2][1])):
-        save(mesh, out / NAMES[key], overwrite=args.force)
+    if not args.no_auto:
+        t = time.perf_counter()
+        label, res = _auto(noisy)
+        rows.append((label, res, time.perf_counter() - t))
+    for key, mesh in zip(names, (clean, noisy, *(r[1] for r in rows[1:]))):
+        save(mesh, out / names[key], overwrite=args.force)
     print(f"Stanford bunny ({clean.num_vertices} vertices, unit bounding-box diagonal), "
           f"Gaussian noise sigma = {args.sigma:g} mean edge lengths, seed {args.seed}")
-    print(f"{'mesh':<36} {'visual error E':>15} {'normal error':>13} {'time':>7}")
+    width = max(36, *(len(r[0]) for r in rows))
+    print(f"{'mesh':<{width}} {'visual error E':>15} {'normal error':>13} {'time':>7}")
     base = errors(clean, noisy)
     for label, mesh, sec in rows:
         e = errors(clean, mesh)
-        print(f"{label:<36} {e['visual_error']:>9.3e} {e['visual_error'] / base['visual_error']:>4.2f}x "
+        print(f"{label:<{width}} {e['visual_error']:>9.3e} {e['visual_error'] / base['visual_error']:>4.2f}x "
               f"{e['normal_angle_deg']:>11.2f}° {sec:>6.2f}s")
-    print(f"wrote {', '.join(str(out / n) for n in NAMES.values())}")
+    print(f"wrote {', '.join(str(out / n) for n in names.values())}")
     return 0

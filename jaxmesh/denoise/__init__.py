@@ -12,6 +12,7 @@ from .anisotropic import anisotropic_diffusion
 from .bilateral_normal import bilateral_normal_filtering, joint_bilateral_normals, spatial_weights
 from .face_graph import FaceGraph, centroid_spacing, face_centroids, face_graph
 from .guided import guidance_normals, guided_normal_filtering, patch_inconsistency
+from .impulse_repair import impulse_repair, mixture_posterior, scale_mixture
 from .l0 import edge_operator, l0_denoising, mean_dihedral_angle
 from .vertex_update import vertex_update
 from .bilateral import bilateral_denoising
@@ -42,4 +43,5 @@ __all__ = [
     "bilateral_normal_filtering", "joint_bilateral_normals", "spatial_weights",
     "guided_normal_filtering", "guidance_normals", "patch_inconsistency",
     "l0_denoising", "edge_operator", "mean_dihedral_angle",
+    "impulse_repair", "scale_mixture", "mixture_posterior",
 ]

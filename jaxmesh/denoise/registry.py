@@ -31,6 +31,7 @@ from .laplacian import BOUNDARY_MODES, hc_smoothing, laplacian_smoothing, taubin
 from .bilateral_normal import bilateral_normal_filtering
 from .face_graph import face_graph
 from .guided import guided_normal_filtering
+from .impulse_repair import impulse_repair
 from .l0 import l0_denoising
 from .normal_filtering import normal_filtering
 
@@ -262,6 +263,12 @@ METHODS: dict[str, Method] = {
             "iterations": _it(40, "half-quadratic steps (β from 1e-3 to 1e3)"),
             "graph": _GRAPH,
         }, "L0 minimization of the edge operator (feature preserving)", "He & Schaefer 2013"),
+        Method("impulse_repair", impulse_repair, {
+            "alpha": Param(0.3, "continuous", "thin-plate weight of the refits (dimensionless)", (0.01, 10.0), True),
+            "alpha0": Param(3.0, "continuous", "thin-plate weight of the first fit", (0.1, 30.0), True),
+            "iterations": _it(5, "read-and-fit rounds"),
+        }, "refit the vertices read as displaced to the others (impulsive noise)",
+            "two-component residual mixture + weighted thin-plate fit"),
         Method("geometric", geometric_diffusion, {
             "dt": Param(0.3, "continuous", "time step in units of the mean vertex area", (0.01, 100.0), True),
             "rho": Param(1.0, "continuous", "curvature scale of G, in 1/mean edge length", (0.01, 100.0), True),

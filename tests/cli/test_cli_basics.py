@@ -89,12 +89,22 @@ def test_list_methods_and_demo(capsys, tmp_path):
     assert main(["denoise", "--list-methods"]) == 0
     listing = capsys.readouterr().out
     assert all(f"{name}:" in listing for name in METHODS)
-    assert main(["demo", "--out", str(tmp_path)]) == 0
+    assert main(["demo", "--out", str(tmp_path), "--no-auto"]) == 0        # the blind default: the slow test
     out = capsys.readouterr().out
     rows = {ln.split()[0]: ln for ln in out.splitlines() if ln.startswith(("noisy", "kernel", "taubin"))}
     ratio = lambda ln: float(ln.split("x")[0].split()[-1])  # noqa: E731
     assert ratio(rows["noisy"]) == 1.0 and ratio(rows["kernel"]) < 0.2 and ratio(rows["taubin"]) < 0.2
     assert sorted(p.name for p in tmp_path.iterdir()) == [
         "bunny_clean.ply", "bunny_kernel.ply", "bunny_noisy.ply", "bunny_taubin.ply"]
-    assert main(["demo", "--out", str(tmp_path)]) == 1
-    assert main(["demo", "--out", str(tmp_path), "--force"]) == 0
+    assert main(["demo", "--out", str(tmp_path), "--no-auto"]) == 1
+    assert main(["demo", "--out", str(tmp_path), "--no-auto", "--force"]) == 0
+
+
+@pytest.mark.slow   # the blind search on the 35k-vertex bunny
+def test_the_demo_shows_the_blind_default_beside_the_filters(capsys, tmp_path):
+    assert main(["demo", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    rows = {ln.split()[0].rstrip(","): ln for ln in out.splitlines() if ln.startswith(("noisy", "taubin", "auto"))}
+    normal = lambda ln: float(ln.split("°")[0].split()[-1])  # noqa: E731
+    assert normal(rows["auto"]) < normal(rows["taubin"]) < normal(rows["noisy"])
+    assert (tmp_path / "bunny_auto.ply").is_file()

@@ -178,7 +178,7 @@ def test_denoise_auto_reads_impulsive_noise_and_says_so(capsys, tmp_path, monkey
     monkeypatch.setattr(cli_denoise, "choose_denoiser", small)
     import trimesh
 
-    ball = trimesh.creation.icosphere(4)                       # 2562 vertices: the decision needs 1000
+    ball = trimesh.creation.icosphere(4)                       # 2562 vertices: the decision needs 500
     clean = str(tmp_path / "ball.ply")
     jaxmesh.save(jaxmesh.Mesh.from_arrays(ball.vertices, ball.faces), clean)
     spiky = str(tmp_path / "spiky.ply")
