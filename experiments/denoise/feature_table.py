@@ -142,7 +142,7 @@ def table(rows: list[dict], flags: str = "") -> str:
              "σ in mean edge lengths ℓ̄; seed 0 unless stated.", "",
              "*bilateral_local*: bilateral normal filtering as the local iterative scheme (one normal pass, "
              "five vertex updates per iteration; a σ_s × σ_r grid × every count up to 16). "
-             "'–': not run (the σ = 0.5ℓ̄ cells leave out L0, the slowest oracle; their best oracle is over the "
+             "'–': not run (the σ ≥ 0.5ℓ̄ cells leave out L0, the slowest oracle; their best oracle is over the "
              "others).", "",
              "| mesh | σ | noise | noisy | " + " | ".join(ORACLE) + " | blind auto (choice) "
              "| auto / best oracle | auto < taubin |",
