@@ -90,13 +90,19 @@ def _umbrella_t(mesh: Mesh, v):
     return neighbor_sum(mesh, safe_divide(v, d)) - jnp.where(d > 0, v, 0)
 
 
-def _fit(mesh: Mesh, y, w, alpha, x0):
+def _topology(mesh: Mesh, dtype):
+    """(connected (V,) bool, diag(KᵀK) (V,)): what every fit of one mesh shares."""
+    d = degree(mesh, dtype)
+    return d > 0, (d > 0).astype(dtype) + neighbor_sum(mesh, safe_divide(jnp.ones_like(d), d * d)[:, None])[:, 0]
+
+
+def _fit(mesh: Mesh, y, w, alpha, x0, topology=None):
     """argmin Σ w_i ‖x_i − y_i‖² + α ‖K x‖²: (W + α KᵀK) x = W y by preconditioned CG, on
     positions centred and scaled to unit RMS (the solution moves and scales with y, since
     K c = 0 for constants; lineax's tolerance is per entry, and zero entries of W y, as at
-    padding vertices, need an absolute one)."""
-    d = degree(mesh, y.dtype)
-    connected = (d > 0).astype(y.dtype)[:, None]
+    padding vertices, need an absolute one).  ``topology``: :func:`_topology` of the mesh."""
+    is_connected, kk_diag = _topology(mesh, y.dtype) if topology is None else topology
+    connected = is_connected.astype(y.dtype)[:, None]
     count = jnp.maximum(jnp.sum(connected), 1)
     centre = jax.lax.stop_gradient(jnp.sum(connected * y, axis=0, keepdims=True) / count)
     scale = jax.lax.stop_gradient(jnp.sqrt(jnp.sum(connected * (y - centre) ** 2) / count) + jnp.finfo(y.dtype).tiny)
@@ -104,7 +110,6 @@ def _fit(mesh: Mesh, y, w, alpha, x0):
     def matvec(x):
         return w[:, None] * x + alpha * _umbrella_t(mesh, umbrella(mesh, x))
 
-    kk_diag = (d > 0).astype(y.dtype) + neighbor_sum(mesh, safe_divide(jnp.ones_like(d), d * d)[:, None])[:, 0]
     diag = jax.lax.stop_gradient(w + alpha * kk_diag)                                  # diag(W + α KᵀK)
     op = lx.FunctionLinearOperator(matvec, jax.ShapeDtypeStruct(y.shape, y.dtype), tags=lx.positive_semidefinite_tag)
     pre = lx.TaggedLinearOperator(lx.DiagonalLinearOperator(jnp.broadcast_to(1 / diag[:, None], y.shape)),
@@ -118,15 +123,16 @@ def _fit(mesh: Mesh, y, w, alpha, x0):
 
 def _repair_single(mesh: Mesh, y, alpha, alpha0, iterations: int):
     ones = jnp.ones(y.shape[0], y.dtype)
-    connected = degree(mesh) > 0                 # isolated (and padding) vertices keep their positions
-    x0 = _fit(mesh, y, ones, alpha0, y)
+    topology = _topology(mesh, y.dtype)
+    connected = topology[0]                      # isolated (and padding) vertices keep their positions
+    x0 = _fit(mesh, y, ones, alpha0, y, topology)
 
     def step(x):
         n = vertex_normals(mesh.with_vertices(x), "area")
         r2 = jnp.sum((y - x) * n, axis=-1) ** 2
         p, v0, v1 = scale_mixture(r2, mask=connected)
         w = jnp.where(connected, jnp.maximum(1 - mixture_posterior(r2, p, v0, v1), MIN_WEIGHT), 1.0)
-        return _fit(mesh, y, w, alpha, x)
+        return _fit(mesh, y, w, alpha, x, topology)
 
     return iterate(step, x0, iterations)
 
