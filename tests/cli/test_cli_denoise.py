@@ -174,7 +174,7 @@ def test_denoise_auto_reads_impulsive_noise_and_says_so(capsys, tmp_path, monkey
     from jaxmesh.tune import Candidate, choose_denoiser
 
     small = functools.partial(choose_denoiser, candidates=[Candidate("taubin", {"iterations": 5})], paths=(),
-                              impulsive_candidates=[Candidate("l0", {"iterations": 8})], blend_draws=0)
+                              impulsive_candidates=[Candidate("impulse_repair", {"iterations": 1})], blend_draws=0)
     monkeypatch.setattr(cli_denoise, "choose_denoiser", small)
     import trimesh
 
@@ -187,7 +187,7 @@ def test_denoise_auto_reads_impulsive_noise_and_says_so(capsys, tmp_path, monkey
     assert main(["denoise", spiky, str(tmp_path / "d.ply"), "--json"]) == 0
     s = json.loads(capsys.readouterr().out)
     assert s["auto"]["noise_law"] == "impulsive" and 0.4 < s["auto"]["noise_fraction"] < 0.6
-    assert {c["method"] for c in s["auto"]["candidates"]} == {"taubin", "l0"}
+    assert {c["method"] for c in s["auto"]["candidates"]} == {"taubin", "impulse_repair"}
     assert main(["denoise", spiky, str(tmp_path / "e.ply")]) == 0
     assert "impulsive noise:" in capsys.readouterr().out
 
