@@ -57,7 +57,9 @@ def patch_inconsistency(graph: FaceGraph, normals: Float[Array, "*batch F 3"]) -
     Returns:
         H(P_j) per face, (*batch, F)."""
     ring = normals[..., graph.ring, :]                                   # (*b, F, K, 3)
-    dots = jnp.einsum("...ka,...la->...kl", ring, ring)
+    # n_a · n_b as three outer products: XLA fuses them into one loop (a batched (K, 3) @ (3, K) matmul
+    # per face runs 2-3x slower on CPU)
+    dots = sum(ring[..., :, None, c] * ring[..., None, :, c] for c in range(3))
     pair = graph.ring_mask[:, :, None] & graph.ring_mask[:, None, :]
     d2 = jnp.max(jnp.where(pair, 2 - 2 * dots, 0), axis=(-2, -1))
     spread = jnp.sqrt(jnp.maximum(d2, 0))
