@@ -48,6 +48,7 @@ from .noise_level import blind_caveats, estimate_tangential_noise, noise_sigma
 from .paths import (BILATERAL_FEATURE_MAX_ITERATIONS, BILATERAL_FEATURE_SETTING, BILATERAL_PATH_FIXED,
                     BILATERAL_PATH_MAX_ITERATIONS, BILATERAL_PATH_SIGMAS, PATHS, TAUBIN_LAMS,
                     TAUBIN_MAX_ITERATIONS, TAUBIN_PASS_BANDS, SearchPath, path_rows, taubin_mu)
+from .patches import PATCH_COUNT, PATCH_FACTOR, sample_patches
 from .recorrupt import edge_tilt, recorruptions
 
 __all__ = ["Candidate", "CANDIDATES", "IMPULSIVE_CANDIDATES", "SearchPath", "PATHS", "NOISE_MODELS", "AutoResult",
@@ -96,7 +97,9 @@ class AutoResult:
     * ``risk``: the winner's estimated mean squared edge tilt (radians²) at the
       recorrupted noise level (a blend's on its own draws), ``noisy_risk`` doing nothing's, and
       ``improved = risk < noisy_risk``;
-    * ``table``: every candidate with its estimate, best first.
+    * ``table``: every candidate with its estimate, best first;
+    * ``search_vertices``: the vertices of the mesh the candidates were ranked on (the
+      whole mesh's, or its patches', :mod:`jaxmesh.tune.patches`).
     """
 
     method: str
@@ -112,6 +115,7 @@ class AutoResult:
     components: tuple = ()
     noise_law: str = "gaussian"
     fraction: float = 1.0
+    search_vertices: int = 0
 
     @property
     def rms_tilt_degrees(self) -> float:
@@ -125,7 +129,7 @@ class AutoResult:
                 "noise_law": self.noise_law, "noise_fraction": self.fraction,
                 "estimated_rms_normal_error_deg": self.rms_tilt_degrees,
                 "noisy_rms_normal_error_deg": float(np.degrees(np.sqrt(max(self.noisy_risk, 0.0)))),
-                "improved": self.improved,
+                "improved": self.improved, "search_vertices": self.search_vertices,
                 "components": [{"method": m, "params": p, "weight": w} for m, p, w in self.components],
                 "candidates": [{"method": m, "params": p, "risk": r} for m, p, r in self.table]}
 
@@ -145,7 +149,8 @@ def _denoise(mesh: Mesh, x, candidate: Candidate, aux: dict):
 
 
 def _check(noisy: Mesh, candidates: Sequence[Candidate], paths: Sequence[SearchPath], draws, a, noise_model,
-           blend_draws=0, blend_size=2, snapshots=()) -> None:
+           blend_draws=0, blend_size=2, snapshots=(),
+           search_vertices=None) -> None:
     from ..denoise import METHODS
 
     if not isinstance(noisy, Mesh):
@@ -174,13 +179,17 @@ def _check(noisy: Mesh, candidates: Sequence[Candidate], paths: Sequence[SearchP
         raise ValueError(f"a must be a positive number, got {a!r}")
     if noise_model not in NOISE_MODELS:
         raise ValueError(f"noise_model must be one of {NOISE_MODELS}, got {noise_model!r}")
+    if search_vertices is not None and (isinstance(search_vertices, bool) or not isinstance(search_vertices, int)
+                                        or search_vertices < PATCH_COUNT):
+        raise ValueError(f"search_vertices must be None or an int >= {PATCH_COUNT}, got {search_vertices!r}")
 
 
 def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequence[Candidate] = CANDIDATES,
                     *, impulsive_candidates: Sequence[Candidate] = IMPULSIVE_CANDIDATES,
                     paths: Sequence[SearchPath] = PATHS, noise_model: str = "auto", draws: int = 2,
                     blend_draws: int = BLEND_DRAWS, blend_size: int = BLEND_SIZE,
-                    snapshots: Sequence[float] = SNAPSHOT_FACTORS, a: float = 0.5, key=0) -> AutoResult:
+                    snapshots: Sequence[float] = SNAPSHOT_FACTORS, a: float = 0.5, key=0,
+                    search_vertices: int | None = None) -> AutoResult:
     """Pick the candidate with the least recorrupted normal-error estimate
     (module docstring) and denoise ``noisy`` with it, blind.
 
@@ -203,6 +212,10 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
             iteration count (``()``: the leaders alone).
         a: the recorruption strength.
         key: the key (or int seed) of the recorruptions.
+        search_vertices: on a mesh of more than ``PATCH_FACTOR`` times this many vertices the
+            candidates are ranked on patches of about this many vertices in all
+            (:mod:`jaxmesh.tune.patches`; ``SEARCH_VERTICES`` is the measured setting) and the
+            winner runs on the whole mesh; ``None`` (default): rank on the whole mesh.
 
     Returns:
         An :class:`AutoResult`: the method and parameters chosen (or the blend), the
@@ -210,18 +223,43 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
     from ..denoise import METHODS
 
     _check(noisy, list(candidates) + list(impulsive_candidates), paths, draws, a, noise_model, blend_draws,
-           blend_size, snapshots)
+           blend_size, snapshots, search_vertices)
     law = _noise_law(noisy, sigma, noise_model)
-    s, s_vertex, s_t, estimated = law["sigma"], law["vertex_sigma"], law["tangential"], law["estimated"]
     if law["law"] == "impulsive":
         candidates = list(candidates) + [c for c in impulsive_candidates if c not in candidates]
+    search, s_vertex, core = noisy, law["vertex_sigma"], None
+    if search_vertices is not None and noisy.num_vertices > PATCH_FACTOR * search_vertices:
+        patches = sample_patches(noisy, search_vertices)
+        search, core = patches.mesh, patches.core_faces
+        s_vertex = s_vertex if np.ndim(s_vertex) == 0 else np.asarray(s_vertex)[patches.vertices]
+    ranked = _rank(search, core, mean_edge_length(noisy), candidates, paths, s_vertex, law["tangential"], draws,
+                   blend_draws, blend_size, snapshots, a, key)
+    components, risk, noisy_risk, table = ranked
+    y = noisy.vertices
+    auxes = {m: METHODS[m].prepare(noisy) for m in {c[0] for c in components}}
+    out = sum(w * _denoise(noisy, y, Candidate(m, p), auxes[m]) for m, p, w in components)
+    method, params = (components[0][0], components[0][1]) if len(components) == 1 else ("blend", {})
+    blind_caveats(noisy, law["sigma"], law["estimated"], risk / noisy_risk)
+    return AutoResult(method, params, noisy.with_vertices(out), law["sigma"], law["estimated"], law["tangential"],
+                      risk, noisy_risk, bool(risk < noisy_risk), table, components, law["law"], law["fraction"],
+                      search.num_vertices)
+
+
+def _rank(noisy: Mesh, core, ell, candidates, paths, s_vertex, s_t, draws, blend_draws, blend_size, snapshots, a,
+          key) -> tuple:
+    """The search of :func:`choose_denoiser` on ``noisy`` (the whole mesh or its patches, where only the
+    faces of ``core`` count): (components, risk, doing nothing's risk, table), risks per counted face."""
+    from ..denoise import METHODS
 
     y = noisy.vertices
     methods = {c.method for c in candidates} | {"guided_normal"} | {path.method for path in paths}
     auxes = {m: METHODS[m].prepare(noisy) for m in methods}
     pilot = noisy.with_vertices(_denoise(noisy, y, Candidate("guided_normal", {}), auxes["guided_normal"]))
     nu, n = face_normals(pilot), vertex_normals(pilot, "area")
-    ell = mean_edge_length(noisy)
+    per_face = 1.0
+    if core is not None:    # faces outside the cores tilt by nothing: ν_f = 0
+        nu = nu * jnp.asarray(core, nu.dtype)[:, None]
+        per_face = noisy.num_faces / max(int(np.sum(core)), 1)
     zs, trace = recorruptions(noisy, nu, n, ell, s_vertex, s_t, draws, key)
     constant = (1 + 1 / a**2) * trace
 
@@ -246,12 +284,8 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
         if len(mix) > 1:
             components = tuple((rows[i][0], rows[i][1], w) for i, w in mix)
             risk = total / noisy.num_faces / blend_draws - constant
-    out = sum(w * _denoise(noisy, y, Candidate(m, p), auxes[m]) for m, p, w in components)
-    method, params = (components[0][0], components[0][1]) if len(components) == 1 else ("blend", {})
-    noisy_risk = (1 + a**2) * trace
-    blind_caveats(noisy, s, estimated, risk / noisy_risk)
-    return AutoResult(method, params, noisy.with_vertices(out), s, estimated, s_t, risk, noisy_risk,
-                      bool(risk < noisy_risk), table, components, law["law"], law["fraction"])
+    table = [(m, p, r * per_face) for m, p, r in table]
+    return components, risk * per_face, (1 + a**2) * trace * per_face, table
 
 
 def _noise_law(noisy: Mesh, sigma, noise_model: str) -> dict:

@@ -59,7 +59,7 @@ def recorruptions(noisy: Mesh, nu, n, ell, s, s_t: float, draws: int, key, salt:
 
     Arguments:
         noisy: the noisy mesh (single).
-        nu: the pilot's unit face normals, (F, 3).
+        nu: the pilot's unit face normals, (F, 3) (a zero row: a face that does not count).
         n: the pilot's unit vertex normals, (V, 3).
         ell: the mean edge length ℓ̄.
         s: the normal noise level, one σ or each vertex's s_i, (V,).
@@ -79,6 +79,6 @@ def recorruptions(noisy: Mesh, nu, n, ell, s, s_t: float, draws: int, key, salt:
         xi = jax.random.normal(jax.random.fold_in(k, 1), (draws, noisy.num_vertices, 3), y.dtype)
         zs = zs + s_t * (xi - jnp.sum(xi * n[None], axis=-1, keepdims=True) * n[None])
     dots = jnp.sum(nu[:, None, :] * n[noisy.faces], axis=-1) ** 2                # (F, 3)
-    per_vertex = s_t**2 + (s_v[noisy.faces] ** 2 - s_t**2) * dots               # Var(ν_f · z_v)
+    per_vertex = s_t**2 * jnp.sum(nu * nu, axis=-1)[:, None] + (s_v[noisy.faces] ** 2 - s_t**2) * dots  # Var(ν_f·z_v)
     trace = float(jnp.sum(per_vertex[:, [1, 2, 0]] + per_vertex[:, [2, 0, 1]]) / ell**2 / noisy.num_faces)
     return zs, trace

@@ -1,0 +1,89 @@
+"""The patch search of the blind chooser (jaxmesh.tune.patches and choose_denoiser(search_vertices=...))."""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+import scipy.sparse.csgraph as csgraph
+import trimesh
+
+import jaxmesh
+from jaxmesh.geometry import face_normals, mean_edge_length, vertex_normals
+from jaxmesh.graph import adjacency_from_faces
+from jaxmesh.metrics import mean_normal_angle_error
+from jaxmesh.tune import Candidate, choose_denoiser
+from jaxmesh.tune.patches import sample_patches
+from jaxmesh.tune.recorrupt import recorruptions
+
+
+@pytest.fixture(scope="module")
+def ball():
+    s = trimesh.creation.icosphere(5)                       # 10242 vertices
+    return jaxmesh.Mesh.from_arrays(s.vertices, s.faces).astype(jnp.float64)
+
+
+def test_the_patches_are_hop_balls_with_their_margin(ball):
+    """Each core is a hop ball of at least its share of vertices around its seed; the region adds exactly
+    `margin` rings (checked with an independent BFS); core faces have three core vertices; the submesh keeps
+    the positions; the seeds are spread (no two within two core radii)."""
+    p = sample_patches(ball, vertices=800, count=4, margin=2)
+    assert len(p.seeds) == 4
+    adj = adjacency_from_faces(np.asarray(ball.faces), ball.num_vertices)
+    d = csgraph.shortest_path(adj, unweighted=True, indices=p.seeds)            # (4, V)
+    np.testing.assert_array_equal(np.asarray(p.mesh.vertices), np.asarray(ball.vertices)[p.vertices])
+    radii = [np.sort(row)[199] for row in d]                                     # 200 core vertices each
+    core = np.any(d <= np.asarray(radii)[:, None], axis=0)
+    region = np.any(d <= np.asarray(radii)[:, None] + 2, axis=0)
+    np.testing.assert_array_equal(np.sort(p.vertices), np.flatnonzero(region))
+    faces = np.asarray(p.mesh.faces)
+    np.testing.assert_array_equal(p.core_faces, core[p.vertices][faces].all(axis=1))
+    assert 800 <= core.sum() < 1200
+    for i in range(4):
+        for j in range(i + 1, 4):
+            assert d[i, p.seeds[j]] > radii[i] + radii[j]
+    again = sample_patches(ball, vertices=800, count=4, margin=2)
+    np.testing.assert_array_equal(again.vertices, p.vertices)
+
+
+def test_sample_patches_refuses_bad_arguments(ball):
+    for args, message in (((0,), "vertices must be an int >= 1"), ((100, 0), "count must be an int >= 1"),
+                          ((100, 2, -1), "margin must be an int >= 0")):
+        with pytest.raises(ValueError, match=message):
+            sample_patches(ball, *args)
+    with pytest.raises(ValueError, match="search_vertices must be None or an int >= 8"):
+        choose_denoiser(ball, search_vertices=3)
+
+
+def test_a_zero_normal_row_takes_the_face_out_of_the_trace(ball):
+    """recorruptions' trace with some rows of ν zeroed is the unmasked per-face trace summed over the kept
+    faces only (an independent per-face numpy sum), divided by F."""
+    nu, n = face_normals(ball), vertex_normals(ball, "area")
+    ell = mean_edge_length(ball)
+    keep = np.arange(ball.num_faces) % 3 != 0
+    s = np.linspace(0.5, 1.5, ball.num_vertices) * 0.01
+    _, trace = recorruptions(ball, nu * jnp.asarray(keep, nu.dtype)[:, None], n, ell, s, 0.004, 1, 0)
+    f = np.asarray(ball.faces)
+    dots = np.sum(np.asarray(nu)[:, None, :] * np.asarray(n)[f], axis=-1) ** 2
+    var = 0.004**2 + (s[f] ** 2 - 0.004**2) * dots
+    per_face = (var[:, [1, 2, 0]] + var[:, [2, 0, 1]]).sum(axis=1) / float(ell) ** 2
+    assert trace == pytest.approx(per_face[keep].sum() / ball.num_faces, rel=1e-10)
+
+
+def test_ranking_on_patches_finds_the_choice_of_the_whole_mesh(ball):
+    """Taubin at 0, 10, 40 iterations on a noisy sphere: ranked on 8 patches of the sphere (a third of it)
+    the order is the whole mesh's, doing nothing's risk is per counted face (the whole mesh's), and the
+    winner runs on the whole mesh.  (The candidates' own estimates are far noisier on the patches: fewer
+    faces average the recorruption's noise.)"""
+    noisy = jaxmesh.add_noise(ball, 0.3, 0)
+    cands = [Candidate("taubin", {"iterations": k}) for k in (1, 10, 40)]
+    kw = dict(candidates=cands, paths=(), blend_draws=0, sigma=0.3 * float(mean_edge_length(ball)))
+    whole = choose_denoiser(noisy, search_vertices=None, **kw)
+    part = choose_denoiser(noisy, search_vertices=1600, **kw)
+    assert whole.search_vertices == ball.num_vertices and part.search_vertices < ball.num_vertices / 2
+    assert [r[1] for r in part.table] == [r[1] for r in whole.table]
+    assert part.noisy_risk == pytest.approx(whole.noisy_risk, rel=0.05)
+    assert part.mesh.num_vertices == ball.num_vertices
+    np.testing.assert_allclose(np.asarray(part.mesh.vertices), np.asarray(whole.mesh.vertices))
+    assert part.summary()["search_vertices"] == part.search_vertices
+    assert float(mean_normal_angle_error(ball, part.mesh)) < float(mean_normal_angle_error(ball, noisy))
