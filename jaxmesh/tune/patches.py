@@ -106,7 +106,7 @@ def sample_patches(mesh: Mesh, vertices: int = SEARCH_VERTICES, count: int = PAT
             raise ValueError(f"{name} must be an int >= {least}, got {value!r}")
     if mesh.batch_shape:
         raise ValueError("sample_patches takes one mesh, got batch shape " + str(mesh.batch_shape))
-    x = np.asarray(mesh.vertices, np.float64)
+    x = np.asarray(mesh.vertices)
     faces = np.asarray(mesh.faces, np.int64)
     adjacency = adjacency_from_faces(faces, len(x))
     seeds = _seeds(mesh, adjacency, int(count))
@@ -119,5 +119,5 @@ def sample_patches(mesh: Mesh, vertices: int = SEARCH_VERTICES, count: int = PAT
         core |= d <= r
         region |= d <= r + margin
     xs, fs, index = submesh(x, faces, region)
-    sub = Mesh.from_arrays(xs.astype(np.asarray(mesh.vertices).dtype), fs, warn=False)
+    sub = Mesh.from_arrays(xs, fs, warn=False)
     return Patches(sub, index, core[index][fs].all(axis=1), seeds)
