@@ -79,7 +79,7 @@ def det_adjugate_3x3(h: Float[Array, "... 3 3"]):
 
 
 #: stream tags of :func:`library_key`, one per use of randomness inside the library
-PROBE_STREAM, RECORRUPTION_STREAM = 1, 2
+PROBE_STREAM, RECORRUPTION_STREAM, PATCH_STREAM = 1, 2, 3
 
 
 def library_key(key, stream: int):

@@ -10,7 +10,7 @@ import trimesh
 
 import jaxmesh
 from jaxmesh.geometry import face_normals, mean_edge_length, vertex_normals
-from jaxmesh.graph import adjacency_from_faces
+from jaxmesh.graph import adjacency_from_faces, metis_labels
 from jaxmesh.metrics import mean_normal_angle_error
 from jaxmesh.tune import Candidate, choose_denoiser
 from jaxmesh.tune.patches import sample_patches
@@ -24,9 +24,10 @@ def ball():
 
 
 def test_the_patches_are_hop_balls_with_their_margin(ball):
-    """Each core is a hop ball of at least its share of vertices around its seed; the region adds exactly
+    """Each core is a hop ball of at least its share of vertices around its centre; the region adds exactly
     `margin` rings (checked with an independent BFS); core faces have three core vertices; the submesh keeps
-    the positions; the seeds are spread (no two within two core radii)."""
+    the positions; the centres lie one in each METIS part; the same seed gives the same patches, another
+    seed other centres."""
     p = sample_patches(ball, vertices=800, count=4, margin=2)
     assert len(p.seeds) == 4
     adj = adjacency_from_faces(np.asarray(ball.faces), ball.num_vertices)
@@ -39,19 +40,37 @@ def test_the_patches_are_hop_balls_with_their_margin(ball):
     faces = np.asarray(p.mesh.faces)
     np.testing.assert_array_equal(p.core_faces, core[p.vertices][faces].all(axis=1))
     assert 800 <= core.sum() < 1200
-    for i in range(4):
-        for j in range(i + 1, 4):
-            assert d[i, p.seeds[j]] > radii[i] + radii[j]
+    degree = np.asarray(ball.degree)
+    labels = metis_labels(np.concatenate([[0], np.cumsum(degree)]), np.asarray(ball.dst), 4)
+    assert sorted(labels[p.seeds]) == [0, 1, 2, 3]
     again = sample_patches(ball, vertices=800, count=4, margin=2)
     np.testing.assert_array_equal(again.vertices, p.vertices)
+    other = sample_patches(ball, vertices=800, count=4, margin=2, seed=1)
+    assert not np.array_equal(np.sort(other.seeds), np.sort(p.seeds))
+
+
+def test_the_centres_are_uniform_within_their_parts(ball):
+    """Over many seeds each part's centre is drawn uniformly: the mean hop distance from the centres
+    to their part's vertices matches the part's mean pairwise hop distance (what a uniform draw
+    gives), not the smaller distance from its deepest vertex."""
+    degree = np.asarray(ball.degree)
+    labels = metis_labels(np.concatenate([[0], np.cumsum(degree)]), np.asarray(ball.dst), 2)
+    adj = adjacency_from_faces(np.asarray(ball.faces), ball.num_vertices)
+    part = np.flatnonzero(labels == 0)
+    centres = [next(s for s in sample_patches(ball, 20, count=2, margin=0, seed=k).seeds if labels[s] == 0)
+               for k in range(40)]
+    drawn = csgraph.shortest_path(adj, unweighted=True, indices=centres)[:, part].mean()
+    rng = np.random.default_rng(5)
+    uniform = csgraph.shortest_path(adj, unweighted=True, indices=rng.choice(part, 200))[:, part].mean()
+    assert drawn == pytest.approx(uniform, rel=0.1)
 
 
 def test_sample_patches_refuses_bad_arguments(ball):
     for args, message in (((0,), "vertices must be an int >= 1"), ((100, 0), "count must be an int >= 1"),
-                          ((100, 2, -1), "margin must be an int >= 0")):
+                          ((100, 2, -1), "margin must be an int >= 0"), ((100, 2, 1, -1), "seed must be an int >= 0")):
         with pytest.raises(ValueError, match=message):
             sample_patches(ball, *args)
-    with pytest.raises(ValueError, match="search_vertices must be None or an int >= 8"):
+    with pytest.raises(ValueError, match="search_vertices must be None or an int >= 32"):
         choose_denoiser(ball, search_vertices=3)
 
 

@@ -50,6 +50,11 @@ def run_dataset(args, given: dict) -> int:
     if bad:
         raise CLIError(f"{', '.join(bad)}: not supported with --out-dir (each mesh in its unit frame, the "
                        "noise estimated per mesh)")
+    from ..tune.patches import SEARCH_VERTICES
+
+    if args.search_vertices != SEARCH_VERTICES:
+        raise CLIError(f"--search-vertices: not supported with --out-dir (every mesh is ranked with the default, "
+                       f"{SEARCH_VERTICES})")
     if args.tune:
         if args.method == "auto":
             raise CLIError("--tune needs a named method (--method NAME); --method auto chooses its own parameters")

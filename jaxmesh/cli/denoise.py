@@ -11,6 +11,7 @@ from ..denoise import as_method
 from ..io import load, save
 from ..tune import choose_denoiser, denoise_with_tuning
 from ..tune.auto import NOISE_MODELS
+from ..tune.patches import PATCH_COUNT, PATCH_FACTOR, SEARCH_VERTICES
 from .. import data
 from ._common import CLIError, check_output, check_view, load_input, positional_output, view_argument, with_caveats, write_view
 from ._dataset import dataset_arguments, run_dataset
@@ -46,12 +47,31 @@ def configure(p) -> None:
                         "the normals), 'isotropic' (Gaussian), 'impulsive' (a fraction of the vertices displaced "
                         "along their normals), or 'auto' (default: impulsive if the mesh reads so, else Gaussian "
                         "with the noise within the surface estimated)")
+    p.add_argument("--search-vertices", type=_search_vertices, default=SEARCH_VERTICES, metavar="N",
+                   help=f"--method auto: on a mesh of more than {PATCH_FACTOR:g}N vertices, rank the candidates on "
+                        f"patches holding about N vertices and run the choice on the whole mesh (default "
+                        f"{SEARCH_VERTICES}); 'all': rank on the whole mesh")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     view_argument(p, "the input and the result (and --reference, colouring both by the distance to it)")
     p.epilog = ("Method parameters are flags named after them (--lam, --iterations, --mu, ...). "
                 "A continuous parameter given as 'auto' (e.g. --lam auto) is tuned: against "
                 "--reference if given (supervised), else blind (Stein's unbiased risk estimate "
                 "of the visual error, noise from --noise-sigma or estimated).")
+
+
+def _search_vertices(text: str) -> int | None:
+    """--search-vertices: an int >= PATCH_COUNT, or 'all' (None: the whole mesh)."""
+    import argparse
+
+    if text == "all":
+        return None
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < PATCH_COUNT:
+        raise argparse.ArgumentTypeError(f"expected an integer >= {PATCH_COUNT} or 'all', got {text!r}")
+    return value
 
 
 def _load_pair(args):
@@ -96,12 +116,14 @@ def run(args) -> int:
         label, mesh, reference, out = _load_pair(args)
         start = time.perf_counter()
         choice, caveats = with_caveats(choose_denoiser, mesh, sigma=args.noise_sigma,
-                                       noise_model=args.noise_model or "auto")
+                                       noise_model=args.noise_model or "auto", search_vertices=args.search_vertices)
         save(choice.mesh, out, overwrite=args.force)
         _view(args, label, mesh, out, choice.mesh, reference)
         return report_auto(args, label, out, mesh, reference, choice, caveats, time.perf_counter() - start)
     if args.noise_model is not None:
         raise CLIError("--noise-model applies to --method auto (the blind choice); drop it or the named method")
+    if args.search_vertices != SEARCH_VERTICES:
+        raise CLIError("--search-vertices applies to --method auto (the blind choice); drop it or the named method")
     if args.raw_units and (args.tune or "auto" in given.values()):
         raise CLIError("tuning runs in the unit-diagonal frame; drop --raw-units")
     label, mesh, reference, out = _load_pair(args)

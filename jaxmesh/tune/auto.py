@@ -24,6 +24,11 @@ blend of leaders (the best of each path and of each fixed method) is estimated
 better on fresh draws (:mod:`jaxmesh.tune.blend`).  It is compared with doing
 nothing, whose error at the same noise level is (1 + a²) tr(AᵀAΣ): if the
 choice does not beat it, ``improved`` is False and the caller must say so.
+**Large meshes.**  On a mesh of more than ``PATCH_FACTOR × search_vertices``
+vertices the candidates are ranked on patches of it, a stratified sample of the
+surface (:mod:`jaxmesh.tune.patches`), and only the choice runs on the whole
+mesh; the noise law is read on the whole mesh.  The recorruptions come in
+antithetic pairs (:mod:`jaxmesh.tune.recorrupt`), which the smaller sample needs.
 Measurements and the alternatives tried: the denoising guide.
 """
 
@@ -39,6 +44,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._private import PATCH_STREAM, library_key
 from ..geometry import face_normals, mean_edge_length, vertex_normals
 from ..mesh import Mesh
 from .blend import (BLEND_DRAWS, BLEND_SALT, BLEND_SIZE, SNAPSHOT_FACTORS, best_mixture, check_snapshots,
@@ -48,7 +54,7 @@ from .noise_level import blind_caveats, estimate_tangential_noise, noise_sigma
 from .paths import (BILATERAL_FEATURE_MAX_ITERATIONS, BILATERAL_FEATURE_SETTING, BILATERAL_PATH_FIXED,
                     BILATERAL_PATH_MAX_ITERATIONS, BILATERAL_PATH_SIGMAS, PATHS, TAUBIN_LAMS,
                     TAUBIN_MAX_ITERATIONS, TAUBIN_PASS_BANDS, SearchPath, path_rows, taubin_mu)
-from .patches import PATCH_COUNT, PATCH_FACTOR, sample_patches
+from .patches import PATCH_COUNT, PATCH_FACTOR, SEARCH_VERTICES, sample_patches
 from .recorrupt import edge_tilt, recorruptions
 
 __all__ = ["Candidate", "CANDIDATES", "IMPULSIVE_CANDIDATES", "SearchPath", "PATHS", "NOISE_MODELS", "AutoResult",
@@ -189,7 +195,7 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
                     paths: Sequence[SearchPath] = PATHS, noise_model: str = "auto", draws: int = 2,
                     blend_draws: int = BLEND_DRAWS, blend_size: int = BLEND_SIZE,
                     snapshots: Sequence[float] = SNAPSHOT_FACTORS, a: float = 0.5, key=0,
-                    search_vertices: int | None = None) -> AutoResult:
+                    search_vertices: int | None = SEARCH_VERTICES, antithetic: bool = True) -> AutoResult:
     """Pick the candidate with the least recorrupted normal-error estimate
     (module docstring) and denoise ``noisy`` with it, blind.
 
@@ -211,11 +217,13 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
         snapshots: each search path's leader is also blended at these multiples of its
             iteration count (``()``: the leaders alone).
         a: the recorruption strength.
-        key: the key (or int seed) of the recorruptions.
+        key: the key (or int seed) of the recorruptions and of the patches' draw.
         search_vertices: on a mesh of more than ``PATCH_FACTOR`` times this many vertices the
-            candidates are ranked on patches of about this many vertices in all
-            (:mod:`jaxmesh.tune.patches`; ``SEARCH_VERTICES`` is the measured setting) and the
-            winner runs on the whole mesh; ``None`` (default): rank on the whole mesh.
+            candidates are ranked on patches whose cores hold about this many vertices in all
+            (:mod:`jaxmesh.tune.patches`; default ``SEARCH_VERTICES``, the measured setting) and
+            the winner runs on the whole mesh; ``None``: always rank on the whole mesh.
+        antithetic: draw the recorruptions in (z, −z) pairs (:mod:`jaxmesh.tune.recorrupt`);
+            False: independent draws.
 
     Returns:
         An :class:`AutoResult`: the method and parameters chosen (or the blend), the
@@ -224,16 +232,19 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
 
     _check(noisy, list(candidates) + list(impulsive_candidates), paths, draws, a, noise_model, blend_draws,
            blend_size, snapshots, search_vertices)
+    if not isinstance(antithetic, bool):
+        raise ValueError(f"antithetic must be True or False, got {antithetic!r}")
     law = _noise_law(noisy, sigma, noise_model)
     if law["law"] == "impulsive":
         candidates = list(candidates) + [c for c in impulsive_candidates if c not in candidates]
     search, s_vertex, core = noisy, law["vertex_sigma"], None
     if search_vertices is not None and noisy.num_vertices > PATCH_FACTOR * search_vertices:
-        patches = sample_patches(noisy, search_vertices)
+        seed = int(jax.random.randint(library_key(key, PATCH_STREAM), (), 0, np.iinfo(np.int32).max))
+        patches = sample_patches(noisy, search_vertices, seed=seed)
         search, core = patches.mesh, patches.core_faces
         s_vertex = s_vertex if np.ndim(s_vertex) == 0 else np.asarray(s_vertex)[patches.vertices]
     ranked = _rank(search, core, mean_edge_length(noisy), candidates, paths, s_vertex, law["tangential"], draws,
-                   blend_draws, blend_size, snapshots, a, key)
+                   blend_draws, blend_size, snapshots, a, key, antithetic)
     components, risk, noisy_risk, table = ranked
     y = noisy.vertices
     auxes = {m: METHODS[m].prepare(noisy) for m in {c[0] for c in components}}
@@ -246,7 +257,7 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
 
 
 def _rank(noisy: Mesh, core, ell, candidates, paths, s_vertex, s_t, draws, blend_draws, blend_size, snapshots, a,
-          key) -> tuple:
+          key, antithetic=True) -> tuple:
     """The search of :func:`choose_denoiser` on ``noisy`` (the whole mesh or its patches, where only the
     faces of ``core`` count): (components, risk, doing nothing's risk, table), risks per counted face."""
     from ..denoise import METHODS
@@ -260,7 +271,7 @@ def _rank(noisy: Mesh, core, ell, candidates, paths, s_vertex, s_t, draws, blend
     if core is not None:    # faces outside the cores tilt by nothing: ν_f = 0
         nu = nu * jnp.asarray(core, nu.dtype)[:, None]
         per_face = noisy.num_faces / max(int(np.sum(core)), 1)
-    zs, trace = recorruptions(noisy, nu, n, ell, s_vertex, s_t, draws, key)
+    zs, trace = recorruptions(noisy, nu, n, ell, s_vertex, s_t, draws, key, antithetic=antithetic)
     constant = (1 + 1 / a**2) * trace
 
     def tilt(row, z):   # A(f(ŷ) − ỹ) for the (method, params, ...) row and the recorruption z
@@ -278,8 +289,8 @@ def _rank(noisy: Mesh, core, ell, candidates, paths, s_vertex, s_t, draws, blend
     components, risk = ((table[0][0], table[0][1], 1.0),), table[0][2]
     rows = leaders + snapshot_rows(leaders[len(leaders) - len(paths):], snapshots, leaders)
     if blend_draws and blend_size > 1 and len(rows) > 1:
-        gram = tilt_gram(rows, recorruptions(noisy, nu, n, ell, s_vertex, s_t, blend_draws, key, salt=BLEND_SALT)[0],
-                         tilt)
+        gram = tilt_gram(rows, recorruptions(noisy, nu, n, ell, s_vertex, s_t, blend_draws, key, salt=BLEND_SALT,
+                                             antithetic=antithetic)[0], tilt)
         mix, total = best_mixture(gram, next(i for i, r in enumerate(rows) if r is table[0]), blend_size)
         if len(mix) > 1:
             components = tuple((rows[i][0], rows[i][1], w) for i, w in mix)

@@ -116,6 +116,7 @@ def test_denoise_auto_is_the_default_and_says_what_it_chose(capsys, tmp_path, sm
     import jaxmesh.cli.denoise as cli_denoise
     from jaxmesh.tune import CANDIDATES, choose_denoiser
     from jaxmesh.tune.auto import PATHS
+    from jaxmesh.tune.patches import SEARCH_VERTICES
 
     calls = []
 
@@ -129,7 +130,8 @@ def test_denoise_auto_is_the_default_and_says_what_it_chose(capsys, tmp_path, sm
     assert main(["denoise", noisy, out, "--reference", clean, "--json"]) == 0
     s = json.loads(capsys.readouterr().out)
     [(args, kwargs, want)] = calls
-    assert kwargs == {"sigma": None, "noise_model": "auto"}      # every other argument at the library's default
+    # every other argument at the library's default
+    assert kwargs == {"sigma": None, "noise_model": "auto", "search_vertices": SEARCH_VERTICES}
     np.testing.assert_array_equal(args[0].vertices, jaxmesh.load(noisy).vertices)
     assert s["method"] == want.method and s["params"] == want.params
     assert s["auto"]["improved"] and len(s["auto"]["candidates"]) == len(CANDIDATES) + sum(
@@ -160,6 +162,14 @@ def test_denoise_auto_passes_the_noise_model_on(capsys, tmp_path, small_pair, mo
     assert "within the surface (isotropic noise)" in capsys.readouterr().out
     assert main(["denoise", noisy, str(tmp_path / "t.ply"), "--method", "taubin", "--noise-model", "normal"]) == 1
     assert "--noise-model applies to --method auto" in capsys.readouterr().err
+    assert main(["denoise", noisy, str(tmp_path / "t.ply"), "--method", "taubin", "--search-vertices", "all"]) == 1
+    assert "--search-vertices applies to --method auto" in capsys.readouterr().err
+    for bad in ("7", "many"):
+        with pytest.raises(SystemExit):
+            main(["denoise", noisy, str(tmp_path / "b.ply"), "--search-vertices", bad])
+        assert "expected an integer >= 32 or 'all'" in capsys.readouterr().err
+    assert main(["denoise", noisy, str(tmp_path / "a.ply"), "--search-vertices", "all", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["auto"]["search_vertices"] > 0
     assert main(["denoise", noisy, str(tmp_path / "f.ply"), "--noise-model", "impulsive", "--json"]) == 0
     s = json.loads(capsys.readouterr().out)
     assert s["auto"]["noise_law"] == "impulsive" and s["auto"]["tangential_noise_sigma"] == 0.0

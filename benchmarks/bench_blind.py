@@ -1,0 +1,108 @@
+"""The default command, blind ``jaxmesh denoise IN OUT``, end to end, against one filter
+and against the search on the whole mesh, in the same run.
+
+    .venv/bin/python benchmarks/bench_blind.py [--sigma 0.2] [--big] [--skip-whole]
+
+The shipped bunny (34,834 vertices) with Gaussian noise of σ = 0.2 mean edge
+lengths (``jaxmesh noise``) is denoised by fresh ``jaxmesh`` processes, each timed
+from start to exit (import, read, search, write):
+
+* the default (``--method auto``, ranked on patches) with an empty compilation
+  cache, then again with the cache that run left (warm);
+* the same with ``--search-vertices all`` (ranked on the whole mesh), warm;
+* ``--method taubin`` at its defaults, warm: one filter, the peer the default's
+  time is compared with.
+
+``--big`` adds the bunny subdivided twice (midpoints, ~556k vertices), default
+and Taubin, warm.  Each process's JSON summary gives what the default chose and
+on how many vertices it ranked.  Not part of the test suite: numbers depend on the
+machine; compare ratios.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+import jaxmesh
+
+JAXMESH = [sys.executable, "-m", "jaxmesh"]
+
+
+def timed_run(args: list[str], cache: Path) -> tuple[float, dict]:
+    """Wall seconds of one fresh ``jaxmesh`` process and its JSON summary."""
+    env = {**os.environ, "JAXMESH_CACHE_DIR": str(cache)}
+    t = time.perf_counter()
+    done = subprocess.run(JAXMESH + args + ["--json"], env=env, capture_output=True, text=True)
+    seconds = time.perf_counter() - t
+    if done.returncode != 0:
+        raise SystemExit(f"{' '.join(args)} failed:\n{done.stderr}")
+    return seconds, json.loads(done.stdout)
+
+
+def describe(summary: dict) -> str:
+    auto = summary.get("auto")
+    if auto is None:
+        return summary.get("method", "?")
+    parts = " + ".join(f"{c['weight']:.2f} {c['method']}" for c in auto["components"])
+    return f"{parts} (ranked on {auto['search_vertices']} vertices)"
+
+
+def bench_mesh(name: str, noisy: Path, work: Path, rows: list, whole: bool, cold: bool) -> None:
+    cache = work / f"cache-{name}"
+    out = lambda tag: str(work / f"{name}-{tag}.ply")     # noqa: E731
+    if cold:
+        t, s = timed_run(["denoise", str(noisy), out("cold")], cache)
+        rows.append((name, "default (auto), empty compilation cache", t, describe(s)))
+    t_auto, s = timed_run(["denoise", str(noisy), out("warm")], cache)
+    rows.append((name, "default (auto), warm cache", t_auto, describe(s)))
+    if whole:
+        t, s = timed_run(["denoise", str(noisy), out("whole"), "--search-vertices", "all"], cache)
+        rows.append((name, "auto --search-vertices all, warm cache", t, describe(s)))
+    t_taubin, s = timed_run(["denoise", str(noisy), out("taubin"), "--method", "taubin"], cache)
+    rows.append((name, "--method taubin (one filter), warm cache", t_taubin, describe(s)))
+    rows.append((name, "default / one filter", t_auto / t_taubin, ""))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--sigma", type=float, default=0.2, help="noise, in mean edge lengths")
+    ap.add_argument("--big", action="store_true", help="also the bunny subdivided twice (~556k vertices)")
+    ap.add_argument("--skip-whole", action="store_true", help="leave out the whole-mesh search (the slowest row)")
+    args = ap.parse_args()
+    rows: list = []
+    with tempfile.TemporaryDirectory() as tmp:
+        work = Path(tmp)
+        clean = work / "bunny.ply"
+        jaxmesh.save(jaxmesh.data.load_sample("bunny"), clean)
+        noisy = work / "bunny-noisy.ply"
+        subprocess.run(JAXMESH + ["noise", str(clean), str(noisy), "--sigma", str(args.sigma)], check=True,
+                       env={**os.environ, "JAXMESH_CACHE_DIR": "off"}, capture_output=True)
+        bench_mesh("bunny", noisy, work, rows, not args.skip_whole, cold=True)
+        if args.big:
+            m = jaxmesh.load(clean)
+            big = trimesh.Trimesh(np.asarray(m.vertices), np.asarray(m.faces), process=False).subdivide().subdivide()
+            clean_big, noisy_big = work / "bunny4.ply", work / "bunny4-noisy.ply"
+            jaxmesh.save(jaxmesh.Mesh.from_arrays(big.vertices, big.faces, warn=False), clean_big)
+            subprocess.run(JAXMESH + ["noise", str(clean_big), str(noisy_big), "--sigma", str(args.sigma)],
+                           check=True, env={**os.environ, "JAXMESH_CACHE_DIR": "off"}, capture_output=True)
+            bench_mesh(f"bunny subdivided twice ({len(big.vertices)} vertices)", noisy_big, work, rows,
+                       whole=False, cold=False)
+    print(f"# blind `jaxmesh denoise` end to end (σ = {args.sigma}ℓ̄, {os.cpu_count()} CPU cores)\n")
+    print("| mesh | run | seconds (ratio) | choice |")
+    print("|---|---|---|---|")
+    for name, what, value, choice in rows:
+        print(f"| {name} | {what} | {value:.2f} | {choice} |")
+
+
+if __name__ == "__main__":
+    main()
