@@ -89,7 +89,7 @@ def test_a_zero_normal_row_takes_the_face_out_of_the_trace(ball):
     assert trace == pytest.approx(per_face[keep].sum() / ball.num_faces, rel=1e-10)
 
 
-def test_ranking_on_patches_finds_the_choice_of_the_whole_mesh(ball):
+def test_ranking_on_patches_finds_the_choice_of_the_whole_mesh(ball, monkeypatch):
     """Taubin at 0, 10, 40 iterations on a noisy sphere: ranked on 8 patches of the sphere (a third of it)
     the order is the whole mesh's, doing nothing's risk is per counted face (the whole mesh's), and the
     winner runs on the whole mesh.  (The candidates' own estimates are far noisier on the patches: fewer
@@ -97,8 +97,18 @@ def test_ranking_on_patches_finds_the_choice_of_the_whole_mesh(ball):
     noisy = jaxmesh.add_noise(ball, 0.3, 0)
     cands = [Candidate("taubin", {"iterations": k}) for k in (1, 10, 40)]
     kw = dict(candidates=cands, paths=(), blend_draws=0, sigma=0.3 * float(mean_edge_length(ball)))
+    import jaxmesh.tune.auto as auto
+
+    flags = []
+
+    def spy(*args, **kwargs):
+        flags.append(kwargs["antithetic"])
+        return recorruptions(*args, **kwargs)
+
+    monkeypatch.setattr(auto, "recorruptions", spy)
     whole = choose_denoiser(noisy, search_vertices=None, **kw)
     part = choose_denoiser(noisy, search_vertices=1600, **kw)
+    assert flags == [False, True]          # antithetic pairs on the patches only (by default)
     assert whole.search_vertices == ball.num_vertices and part.search_vertices < ball.num_vertices / 2
     assert [r[1] for r in part.table] == [r[1] for r in whole.table]
     assert part.noisy_risk == pytest.approx(whole.noisy_risk, rel=0.05)

@@ -27,8 +27,10 @@ choice does not beat it, ``improved`` is False and the caller must say so.
 **Large meshes.**  On a mesh of more than ``PATCH_FACTOR × search_vertices``
 vertices the candidates are ranked on patches of it, a stratified sample of the
 surface (:mod:`jaxmesh.tune.patches`), and only the choice runs on the whole
-mesh; the noise law is read on the whole mesh.  The recorruptions come in
-antithetic pairs (:mod:`jaxmesh.tune.recorrupt`), which the smaller sample needs.
+mesh; the noise law is read on the whole mesh.  There the recorruptions come
+in antithetic pairs (:mod:`jaxmesh.tune.recorrupt`): on the bunny's patches they
+brought the choice closer to the whole mesh's, while on whole meshes they were
+no better than independent draws (worse at heavy noise on the fandisk).
 Measurements and the alternatives tried: the denoising guide.
 """
 
@@ -195,7 +197,7 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
                     paths: Sequence[SearchPath] = PATHS, noise_model: str = "auto", draws: int = 2,
                     blend_draws: int = BLEND_DRAWS, blend_size: int = BLEND_SIZE,
                     snapshots: Sequence[float] = SNAPSHOT_FACTORS, a: float = 0.5, key=0,
-                    search_vertices: int | None = SEARCH_VERTICES, antithetic: bool = True) -> AutoResult:
+                    search_vertices: int | None = SEARCH_VERTICES, antithetic: bool | None = None) -> AutoResult:
     """Pick the candidate with the least recorrupted normal-error estimate
     (module docstring) and denoise ``noisy`` with it, blind.
 
@@ -222,8 +224,9 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
             candidates are ranked on patches whose cores hold about this many vertices in all
             (:mod:`jaxmesh.tune.patches`; default ``SEARCH_VERTICES``, the measured setting) and
             the winner runs on the whole mesh; ``None``: always rank on the whole mesh.
-        antithetic: draw the recorruptions in (z, −z) pairs (:mod:`jaxmesh.tune.recorrupt`);
-            False: independent draws.
+        antithetic: draw the recorruptions in (z, −z) pairs (:mod:`jaxmesh.tune.recorrupt`) or
+            independently; ``None`` (default): pairs when ranking on patches, independent draws on
+            the whole mesh (the measured choice, the denoising guide).
 
     Returns:
         An :class:`AutoResult`: the method and parameters chosen (or the blend), the
@@ -232,8 +235,8 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
 
     _check(noisy, list(candidates) + list(impulsive_candidates), paths, draws, a, noise_model, blend_draws,
            blend_size, snapshots, search_vertices)
-    if not isinstance(antithetic, bool):
-        raise ValueError(f"antithetic must be True or False, got {antithetic!r}")
+    if antithetic is not None and not isinstance(antithetic, bool):
+        raise ValueError(f"antithetic must be True, False or None, got {antithetic!r}")
     law = _noise_law(noisy, sigma, noise_model)
     if law["law"] == "impulsive":
         candidates = list(candidates) + [c for c in impulsive_candidates if c not in candidates]
@@ -243,6 +246,7 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
         patches = sample_patches(noisy, search_vertices, seed=seed)
         search, core = patches.mesh, patches.core_faces
         s_vertex = s_vertex if np.ndim(s_vertex) == 0 else np.asarray(s_vertex)[patches.vertices]
+    antithetic = core is not None if antithetic is None else antithetic
     ranked = _rank(search, core, mean_edge_length(noisy), candidates, paths, s_vertex, law["tangential"], draws,
                    blend_draws, blend_size, snapshots, a, key, antithetic)
     components, risk, noisy_risk, table = ranked
@@ -254,6 +258,16 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
     return AutoResult(method, params, noisy.with_vertices(out), law["sigma"], law["estimated"], law["tangential"],
                       risk, noisy_risk, bool(risk < noisy_risk), table, components, law["law"], law["fraction"],
                       search.num_vertices)
+
+
+def _tilts(noisy: Mesh, zs, candidates: Sequence[Candidate], auxes: dict, nu, ell, a) -> list:
+    """T = A(f(ŷ_d) − ỹ_d) of every candidate f on every recorruption z_d (ŷ = y + a z, ỹ = y − z/a),
+    one array (D, F, 3) per candidate.  One mesh per call: batching the draws or the
+    settings into one call ran slower on CPU under the ``jaxmesh`` command's XLA flags
+    (:mod:`jaxmesh.compiler`) and compiled a program per batch size."""
+    y = noisy.vertices
+    return [jnp.stack([edge_tilt(noisy, nu, ell, _denoise(noisy, y + a * z, c, auxes[c.method]) - (y - z / a))
+                       for z in zs]) for c in candidates]
 
 
 def _rank(noisy: Mesh, core, ell, candidates, paths, s_vertex, s_t, draws, blend_draws, blend_size, snapshots, a,
@@ -274,11 +288,8 @@ def _rank(noisy: Mesh, core, ell, candidates, paths, s_vertex, s_t, draws, blend
     zs, trace = recorruptions(noisy, nu, n, ell, s_vertex, s_t, draws, key, antithetic=antithetic)
     constant = (1 + 1 / a**2) * trace
 
-    def tilt(row, z):   # A(f(ŷ) − ỹ) for the (method, params, ...) row and the recorruption z
-        return edge_tilt(noisy, nu, ell, _denoise(noisy, y + a * z, Candidate(*row[:2]), auxes[row[0]]) - (y - z / a))
-
-    table = [(c.method, dict(c.params), sum(float(jnp.sum(tilt((c.method, c.params), z) ** 2)) for z in zs)
-              / noisy.num_faces / draws - constant) for c in candidates]
+    squares = [float(jnp.sum(t**2)) for t in _tilts(noisy, zs, candidates, auxes, nu, ell, a)]
+    table = [(c.method, dict(c.params), sq / noisy.num_faces / draws - constant) for c, sq in zip(candidates, squares)]
     leaders = []
     leaders += [min((r for r in table if r[0] == m), key=lambda r: r[2]) for m in dict.fromkeys(r[0] for r in table)]
     for path in paths:
@@ -289,8 +300,10 @@ def _rank(noisy: Mesh, core, ell, candidates, paths, s_vertex, s_t, draws, blend
     components, risk = ((table[0][0], table[0][1], 1.0),), table[0][2]
     rows = leaders + snapshot_rows(leaders[len(leaders) - len(paths):], snapshots, leaders)
     if blend_draws and blend_size > 1 and len(rows) > 1:
-        gram = tilt_gram(rows, recorruptions(noisy, nu, n, ell, s_vertex, s_t, blend_draws, key, salt=BLEND_SALT,
-                                             antithetic=antithetic)[0], tilt)
+        fresh = recorruptions(noisy, nu, n, ell, s_vertex, s_t, blend_draws, key, salt=BLEND_SALT,
+                              antithetic=antithetic)[0]
+        gram = tilt_gram(np.stack([np.asarray(t) for t in _tilts(noisy, fresh, [Candidate(*r[:2]) for r in rows],
+                                                                   auxes, nu, ell, a)]))
         mix, total = best_mixture(gram, next(i for i, r in enumerate(rows) if r is table[0]), blend_size)
         if len(mix) > 1:
             components = tuple((rows[i][0], rows[i][1], w) for i, w in mix)

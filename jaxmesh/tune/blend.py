@@ -58,7 +58,7 @@ more the weights chase the squared tilt's few large errors.
 from __future__ import annotations
 
 import itertools
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -203,21 +203,16 @@ def snapshot_rows(path_leaders: list, factors: Sequence[float], have: list) -> l
     return out
 
 
-def tilt_gram(rows: Sequence, zs, tilt: Callable) -> np.ndarray:
+def tilt_gram(tilts) -> np.ndarray:
     """G_kl = Σ_d ⟨T_k(z_d), T_l(z_d)⟩: the Gram matrix of the recorrupted edge
     tilts of K denoisers over the draws z_d (module docstring; the blend's draws
     are fresh, independent of the ranking's).
 
     Arguments:
-        rows: the K denoisers, as ``tilt`` takes them.
-        zs: the recorruptions z_d, (D, V, 3).
-        tilt: tilt(row, z) → the edge tilts A(f_row(y + a z) − (y − z/a)).
+        tilts: T_k(z_d) = A(f_k(y + a z_d) − (y − z_d/a)), (K, D, ...) for K denoisers and D draws.
 
     Returns:
         (K, K) float64."""
-    gram = np.zeros((len(rows), len(rows)))
-    for z in zs:
-        t = np.stack([np.asarray(tilt(row, z), np.float64).ravel() for row in rows])
-        gram += t @ t.T
-    return gram
-
+    t = np.asarray(tilts, np.float64)
+    t = t.reshape(t.shape[0], -1)
+    return t @ t.T
