@@ -108,7 +108,9 @@ def test_ranking_on_patches_finds_the_choice_of_the_whole_mesh(ball, monkeypatch
     monkeypatch.setattr(auto, "recorruptions", spy)
     whole = choose_denoiser(noisy, search_vertices=None, **kw)
     part = choose_denoiser(noisy, search_vertices=1600, **kw)
-    assert flags == [False, True]          # antithetic pairs on the patches only (by default)
+    paired = choose_denoiser(noisy, search_vertices=1600, antithetic=True, **kw)
+    assert flags == [False, False, True]   # independent draws unless asked
+    assert [r[1] for r in paired.table] == [r[1] for r in whole.table]
     assert whole.search_vertices == ball.num_vertices and part.search_vertices < ball.num_vertices / 2
     assert [r[1] for r in part.table] == [r[1] for r in whole.table]
     assert part.noisy_risk == pytest.approx(whole.noisy_risk, rel=0.05)

@@ -107,9 +107,10 @@ def local_oracle(clean, noisy) -> dict:
 
 
 def blind(clean, noisy, draws: int = 2, blend_draws: int = BLEND_DRAWS, blend_size: int = BLEND_SIZE,
-          snapshots=SNAPSHOT_FACTORS) -> dict:
+          snapshots=SNAPSHOT_FACTORS, antithetic: bool = False) -> dict:
     start = time.perf_counter()
-    c = choose_denoiser(noisy, draws=draws, blend_draws=blend_draws, blend_size=blend_size, snapshots=snapshots)
+    c = choose_denoiser(noisy, draws=draws, blend_draws=blend_draws, blend_size=blend_size, snapshots=snapshots,
+                        antithetic=antithetic)
     return {"method": c.method, "params": c.params, "components": [list(x) for x in c.components],
             "improved": c.improved, "sigma_hat": c.sigma,
             "tangential_sigma": c.tangential_sigma,
@@ -202,16 +203,20 @@ def main() -> None:
                     help=f"the path leaders' iteration multiples added to the blend (default "
                          f"{' '.join(map(str, SNAPSHOT_FACTORS)) or 'none'}, the library's; other values work as --draws, "
                          "writing ..._snap{F-G} or ..._snap0 for none)")
+    ap.add_argument("--pairs", action="store_true",
+                    help="antithetic recorruption pairs (choose_denoiser(antithetic=True)); works as --draws, "
+                         "writing ..._pairs")
     args = ap.parse_args()
     snaps = tuple(args.snapshots)
     RESULTS.mkdir(parents=True, exist_ok=True)
     other = (args.draws != 2 or args.blend_draws != BLEND_DRAWS or args.blend_size != BLEND_SIZE
-             or snaps != SNAPSHOT_FACTORS)
+             or snaps != SNAPSHOT_FACTORS or args.pairs)
     snap_name = "-".join(f"{f:g}" for f in snaps) or "0"
     stem = ("feature_table" + (f"_draws{args.draws}" if args.draws != 2 else "")
             + (f"_blend{args.blend_draws}" if args.blend_draws != BLEND_DRAWS else "")
             + (f"_size{args.blend_size}" if args.blend_size != BLEND_SIZE else "")
-            + (f"_snap{snap_name}" if snaps != SNAPSHOT_FACTORS else ""))
+            + (f"_snap{snap_name}" if snaps != SNAPSHOT_FACTORS else "")
+            + ("_pairs" if args.pairs else ""))
     path = RESULTS / f"{stem}.json"
     if other and not (args.report_only and path.exists()):     # the saved cells, with another blind column
         done = json.loads((RESULTS / "feature_table.json").read_text())
@@ -223,10 +228,12 @@ def main() -> None:
     have = {(r["mesh"], r["sigma"], r["model"]) for r in done["cells"]}
     if args.blind_only:
         for r in done["cells"] + ([] if args.redo_seeds else done["seeds"]):
+            if r["mesh"] not in args.meshes:
+                continue
             clean = jaxmesh.normalize(load_shared(r["mesh"]))
             noisy = jaxmesh.add_noise(clean, r["sigma"], jax.random.PRNGKey(r["seed"]),
                                       along_normals=r["model"] == "normal")
-            r["blind"] = blind(clean, noisy, args.draws, args.blend_draws, args.blend_size, snaps)
+            r["blind"] = blind(clean, noisy, args.draws, args.blend_draws, args.blend_size, snaps, args.pairs)
             print(f"{r['mesh']} {r['sigma']} {r['model']} seed {r['seed']}: auto {r['blind']['method']} "
                   f"{r['blind']['normal_deg']:.2f}", flush=True)
             path.write_text(json.dumps(done, indent=1))

@@ -2,19 +2,26 @@
 choice the whole mesh's, and what does it save?
 
     .venv/bin/python experiments/denoise/patch_search.py [--meshes bunny] [--search-vertices 2000]
+        [--draws independent|pairs] [--reuse-whole]
 
 For each mesh (unit bounding-box diagonal) × σ ∈ {0.1, 0.3, 0.5}ℓ̄ × both noise
 models (isotropic; along the clean normals), seed 0: ``choose_denoiser`` ranked
-on the whole mesh (``search_vertices=None``) and on patches
-(:mod:`jaxmesh.tune.patches`), each in a fresh-key process-warm call; the mean
+on the whole mesh (``search_vertices=None``) and on patches (the default,
+:mod:`jaxmesh.tune.patches`), each in a process-warm call; the mean
 face-normal error of each output against the clean mesh, their ratio, and the
 wall-clock time of each call (2 CPU cores here; the first cell's times include
-compiling).  Writes experiments/results/denoise/patch_search.md.
+compiling).  ``--draws`` sets the recorruptions of the patch ranking:
+independent (the library's default) or antithetic pairs.
+The whole-mesh results are saved to ``patch_search_whole.json``;
+``--reuse-whole`` reads them from there instead of recomputing them (they do
+not depend on ``--draws`` or ``--search-vertices``).  Writes
+experiments/results/denoise/patch_search[_DRAWS].md.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 from pathlib import Path
@@ -33,11 +40,12 @@ from shared_meshes import load  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parents[2] / "experiments" / "results" / "denoise"
 CELLS = tuple((s, m) for s in (0.1, 0.3, 0.5) for m in ("iso", "nor"))
+DRAWS = {"independent": False, "pairs": True}
 
 
-def run(noisy, clean, search_vertices):
+def run(noisy, clean, **kw):
     t = time.perf_counter()
-    r = choose_denoiser(noisy, search_vertices=search_vertices)
+    r = choose_denoiser(noisy, **kw)
     return float(mean_normal_angle_error(clean, r.mesh)), time.perf_counter() - t, r.search_vertices
 
 
@@ -45,21 +53,36 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--meshes", nargs="*", default=["bunny"])
     ap.add_argument("--search-vertices", type=int, default=SEARCH_VERTICES)
+    ap.add_argument("--draws", choices=sorted(DRAWS), default="independent")
+    ap.add_argument("--reuse-whole", action="store_true", help="read the whole-mesh results from the last full run")
     args = ap.parse_args()
-    lines = [f"# Patch search (search_vertices={args.search_vertices}) against the whole-mesh search", "",
+    saved = RESULTS / "patch_search_whole.json"
+    whole = json.loads(saved.read_text()) if args.reuse_whole else {}
+    lines = [f"# Patch search (search_vertices={args.search_vertices}, draws: {args.draws}) against the "
+             "whole-mesh search", "",
              "| mesh | σ/ℓ̄ | model | whole ° | patches ° | ratio | whole s | patches s | searched V |",
              "|---|---|---|---|---|---|---|---|---|"]
+    ratios = []
     for name in args.meshes:
         clean = jaxmesh.normalize(load(name))
         for sigma, model in CELLS:
             noisy = jaxmesh.add_noise(clean, sigma, 0, along_normals=model == "nor")
-            e_w, t_w, _ = run(noisy, clean, None)
-            e_p, t_p, v_p = run(noisy, clean, args.search_vertices)
+            cell = f"{name} {sigma} {model}"
+            if cell not in whole:
+                e_w, t_w, _ = run(noisy, clean, search_vertices=None)
+                whole[cell] = {"normal_deg": e_w, "seconds": t_w}
+            e_w, t_w = whole[cell]["normal_deg"], whole[cell]["seconds"]
+            e_p, t_p, v_p = run(noisy, clean, search_vertices=args.search_vertices, antithetic=DRAWS[args.draws])
+            ratios.append(e_p / e_w)
             lines.append(f"| {name} | {sigma} | {model} | {e_w:.3f} | {e_p:.3f} | {e_p / e_w:.3f} | {t_w:.1f} | "
                          f"{t_p:.1f} | {v_p} |")
             print(lines[-1], flush=True)
+    lines += ["", f"Ratio patches / whole: mean {sum(ratios) / len(ratios):.3f}, worst {max(ratios):.3f}; "
+              f"within 1.02 in {sum(r <= 1.02 for r in ratios)} of {len(ratios)} cells."]
     RESULTS.mkdir(parents=True, exist_ok=True)
-    (RESULTS / "patch_search.md").write_text("\n".join(lines) + "\n")
+    saved.write_text(json.dumps(whole, indent=1))
+    suffix = "" if args.draws == "independent" else f"_{args.draws}"
+    (RESULTS / f"patch_search{suffix}.md").write_text("\n".join(lines) + "\n")
 
 
 if __name__ == "__main__":

@@ -27,10 +27,7 @@ choice does not beat it, ``improved`` is False and the caller must say so.
 **Large meshes.**  On a mesh of more than ``PATCH_FACTOR × search_vertices``
 vertices the candidates are ranked on patches of it, a stratified sample of the
 surface (:mod:`jaxmesh.tune.patches`), and only the choice runs on the whole
-mesh; the noise law is read on the whole mesh.  There the recorruptions come
-in antithetic pairs (:mod:`jaxmesh.tune.recorrupt`): on the bunny's patches they
-brought the choice closer to the whole mesh's, while on whole meshes they were
-no better than independent draws (worse at heavy noise on the fandisk).
+mesh; the noise law is read on the whole mesh.
 Measurements and the alternatives tried: the denoising guide.
 """
 
@@ -197,7 +194,7 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
                     paths: Sequence[SearchPath] = PATHS, noise_model: str = "auto", draws: int = 2,
                     blend_draws: int = BLEND_DRAWS, blend_size: int = BLEND_SIZE,
                     snapshots: Sequence[float] = SNAPSHOT_FACTORS, a: float = 0.5, key=0,
-                    search_vertices: int | None = SEARCH_VERTICES, antithetic: bool | None = None) -> AutoResult:
+                    search_vertices: int | None = SEARCH_VERTICES, antithetic: bool = False) -> AutoResult:
     """Pick the candidate with the least recorrupted normal-error estimate
     (module docstring) and denoise ``noisy`` with it, blind.
 
@@ -224,9 +221,8 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
             candidates are ranked on patches whose cores hold about this many vertices in all
             (:mod:`jaxmesh.tune.patches`; default ``SEARCH_VERTICES``, the measured setting) and
             the winner runs on the whole mesh; ``None``: always rank on the whole mesh.
-        antithetic: draw the recorruptions in (z, −z) pairs (:mod:`jaxmesh.tune.recorrupt`) or
-            independently; ``None`` (default): pairs when ranking on patches, independent draws on
-            the whole mesh (the measured choice, the denoising guide).
+        antithetic: draw the recorruptions in (z, −z) pairs (:mod:`jaxmesh.tune.recorrupt`;
+            measured no better than independent draws, the default: the denoising guide).
 
     Returns:
         An :class:`AutoResult`: the method and parameters chosen (or the blend), the
@@ -235,8 +231,8 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
 
     _check(noisy, list(candidates) + list(impulsive_candidates), paths, draws, a, noise_model, blend_draws,
            blend_size, snapshots, search_vertices)
-    if antithetic is not None and not isinstance(antithetic, bool):
-        raise ValueError(f"antithetic must be True, False or None, got {antithetic!r}")
+    if not isinstance(antithetic, bool):
+        raise ValueError(f"antithetic must be True or False, got {antithetic!r}")
     law = _noise_law(noisy, sigma, noise_model)
     if law["law"] == "impulsive":
         candidates = list(candidates) + [c for c in impulsive_candidates if c not in candidates]
@@ -246,7 +242,6 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
         patches = sample_patches(noisy, search_vertices, seed=seed)
         search, core = patches.mesh, patches.core_faces
         s_vertex = s_vertex if np.ndim(s_vertex) == 0 else np.asarray(s_vertex)[patches.vertices]
-    antithetic = core is not None if antithetic is None else antithetic
     ranked = _rank(search, core, mean_edge_length(noisy), candidates, paths, s_vertex, law["tangential"], draws,
                    blend_draws, blend_size, snapshots, a, key, antithetic)
     components, risk, noisy_risk, table = ranked
@@ -271,7 +266,7 @@ def _tilts(noisy: Mesh, zs, candidates: Sequence[Candidate], auxes: dict, nu, el
 
 
 def _rank(noisy: Mesh, core, ell, candidates, paths, s_vertex, s_t, draws, blend_draws, blend_size, snapshots, a,
-          key, antithetic=True) -> tuple:
+          key, antithetic=False) -> tuple:
     """The search of :func:`choose_denoiser` on ``noisy`` (the whole mesh or its patches, where only the
     faces of ``core`` count): (components, risk, doing nothing's risk, table), risks per counted face."""
     from ..denoise import METHODS

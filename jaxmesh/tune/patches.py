@@ -3,24 +3,24 @@ ranks its candidates before running the winner on the whole mesh.
 
 **The patches** (a stratified cluster sample of the surface).  The mesh is
 split into ``count`` parts of near-equal size (METIS,
-:func:`jaxmesh.graph.metis_labels`), the strata; each part's seed is one of its
-vertices drawn uniformly at random (a fixed ``seed``, so the sample is
-deterministic).  Around each seed the core is the smallest hop ball
-B_r(seed) = {i : d(seed, i) ≤ r} holding ``vertices / count`` vertices; the
-region is B_{r+m}(seed), the core and ``margin`` rings m around it.  The search
+:func:`jaxmesh.graph.metis_labels`), the strata; each part's centre c is one of
+its vertices drawn uniformly at random (from ``seed``, so the sample is
+deterministic).  Around each centre the core is the smallest hop ball
+B_r(c) = {i : d(c, i) ≤ r} holding ``vertices / count`` vertices; the
+region is B_{r+m}(c), the core and ``margin`` rings m around it.  The search
 mesh is the union of the regions (the faces whose three vertices lie in it,
 :func:`jaxmesh.graph.submesh`).  Its faces with three core vertices are the
 ones the ranking counts: a patch's outer rings are an artificial boundary,
 where the filters behave as they do nowhere on the whole mesh.
 
-Why random seeds and many small patches: the candidates' errors vary over a
-scanned surface (smooth flanks, detailed fur, creases), and the recorrupted
-estimate's own bias varies with them, so the sample must look like the whole
-surface.  Seeds at each part's deepest vertex (the farthest from the other
+Why random centres and many small patches: the candidates' errors vary over a
+scanned surface (smooth flanks, detailed fur, creases), and so does the
+recorrupted estimate's own bias, so the sample must look like the whole
+surface.  Centres at each part's deepest vertex (the farthest from the other
 parts) or spread by farthest-point sampling land on systematically unusual
-places (the interiors of detailed regions; the ears and feet of an animal);
-on the bunny both misranked the candidates where uniform seeds in 32 strata
-did not (the denoising guide, *Ranking on patches*).
+places (the interiors of detailed regions; the ears and feet of an animal),
+where every candidate errs more than on the whole mesh (the denoising guide,
+*Ranking on patches*).
 
 Hop balls on a roughly uniform triangulation are discs of ~3r² vertices, so a
 margin of m rings costs ~2m/r of the core.  ``PATCH_COUNT`` patches,
@@ -58,7 +58,7 @@ class Patches:
     * ``mesh``: the union of the regions (single mesh, the input's dtype);
     * ``vertices``: each search-mesh vertex's index in the whole mesh, (V_s,);
     * ``core_faces``: which search-mesh faces the ranking counts, (F_s,) bool;
-    * ``seeds``: the patches' seed vertices (whole-mesh indices).
+    * ``seeds``: the patches' centres (whole-mesh indices).
     """
 
     mesh: Mesh
@@ -67,12 +67,12 @@ class Patches:
     seeds: np.ndarray
 
 
-def _hops(adjacency, seed: int) -> np.ndarray:
-    """Hop distances from ``seed`` (inf where unreachable)."""
-    return csgraph.shortest_path(adjacency, unweighted=True, indices=seed, directed=False)
+def _hops(adjacency, source: int) -> np.ndarray:
+    """Hop distances from ``source`` (inf where unreachable)."""
+    return csgraph.shortest_path(adjacency, unweighted=True, indices=source, directed=False)
 
 
-def _seeds(mesh: Mesh, count: int, seed: int) -> np.ndarray:
+def _centres(mesh: Mesh, count: int, seed: int) -> np.ndarray:
     """One vertex drawn uniformly from each of ``count`` METIS parts (module docstring)."""
     used = np.asarray(mesh.degree) > 0
     count = max(min(count, int(used.sum())), 1)
@@ -107,13 +107,15 @@ def sample_patches(mesh: Mesh, vertices: int = SEARCH_VERTICES, count: int = PAT
     x = np.asarray(mesh.vertices)
     faces = np.asarray(mesh.faces, np.int64)
     adjacency = adjacency_from_faces(faces, len(x))
-    seeds = _seeds(mesh, int(count), int(seed))
+    seeds = _centres(mesh, int(count), int(seed))
     per_patch = max(int(vertices) // len(seeds), 1)
     core = np.zeros(len(x), bool)
     region = np.zeros(len(x), bool)
     for centre in seeds:
         d = _hops(adjacency, int(centre))
-        r = np.sort(d[np.isfinite(d)])[min(per_patch, int(np.isfinite(d).sum())) - 1]
+        reach = d[np.isfinite(d)]
+        k = min(per_patch, reach.size) - 1
+        r = np.partition(reach, k)[k]             # the per_patch-th nearest vertex's distance
         core |= d <= r
         region |= d <= r + margin
     xs, fs, index = submesh(x, faces, region)

@@ -34,11 +34,10 @@ cancels it (exactly for a linear f, whose pair mean is
 ‖A(f(y) − y)‖² + ‖A(a W + I/a) z‖² for f(y) = W y).  What is left is the
 quadratic term, a Hutchinson-type estimate of the divergence that makes the
 estimate unbiased; it is even in z, so a pair holds one sample of it where two
-independent draws hold two.  Pairs therefore pay off where the linear term
-dominates the noise: measured (the denoising guide, *Ranking on patches*),
-they brought the ranking on the bunny's patches closer to the whole mesh's, and
-on whole meshes they were no better than independent draws (worse on the
-fandisk at 0.7ℓ̄).
+independent draws hold two.  Pairs pay off only where the linear term dominates
+the noise of the ranking; measured (the denoising guide, *Ranking on patches*),
+they were no better than independent draws on the bunny's patches and worse on
+the fandisk at 0.7ℓ̄, so the chooser draws independently unless asked.
 """
 
 from __future__ import annotations
