@@ -36,7 +36,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import itertools
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from typing import Any
 
 import jax
@@ -255,14 +255,15 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
                       search.num_vertices)
 
 
-def _tilts(noisy: Mesh, zs, candidates: Sequence[Candidate], auxes: dict, nu, ell, a) -> list:
+def _tilts(noisy: Mesh, zs, candidates: Sequence[Candidate], auxes: dict, nu, ell, a) -> Iterator:
     """T = A(f(ŷ_d) − ỹ_d) of every candidate f on every recorruption z_d (ŷ = y + a z, ỹ = y − z/a),
-    one array (D, F, 3) per candidate.  One mesh per call: batching the draws or the
-    settings into one call ran slower on CPU under the ``jaxmesh`` command's XLA flags
-    (:mod:`jaxmesh.compiler`) and compiled a program per batch size."""
+    one array (D, F, 3) per candidate, candidate by candidate.  One mesh per call: batching
+    the draws or the settings into one call ran slower on CPU under the ``jaxmesh``
+    command's XLA flags (:mod:`jaxmesh.compiler`) and compiled a program per batch size."""
     y = noisy.vertices
-    return [jnp.stack([edge_tilt(noisy, nu, ell, _denoise(noisy, y + a * z, c, auxes[c.method]) - (y - z / a))
-                       for z in zs]) for c in candidates]
+    for c in candidates:
+        yield jnp.stack([edge_tilt(noisy, nu, ell, _denoise(noisy, y + a * z, c, auxes[c.method]) - (y - z / a))
+                         for z in zs])
 
 
 def _rank(noisy: Mesh, core, ell, candidates, paths, s_vertex, s_t, draws, blend_draws, blend_size, snapshots, a,
