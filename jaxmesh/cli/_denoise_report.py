@@ -65,6 +65,9 @@ def report_auto(args, label, out, mesh, reference, choice, caveats, seconds) -> 
     else:
         what = f"{choice.method} {_settings(choice.params)}"
     print(f"{label} -> {out}: auto chose {what} ({seconds:.2f} s)")
+    if choice.search_vertices < mesh.num_vertices:
+        print(f"  ranked on patches of {choice.search_vertices} of the {mesh.num_vertices} vertices "
+              "(--search-vertices all: on the whole mesh)")
     if choice.noise_law == "impulsive":
         print(f"  impulsive noise: {choice.fraction:.0%} of the vertices displaced along their normals, sigma "
               f"{choice.sigma:.4g} ({'estimated' if choice.estimated else 'given'}); recorrupted estimate under "

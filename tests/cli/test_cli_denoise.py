@@ -175,6 +175,32 @@ def test_denoise_auto_passes_the_noise_model_on(capsys, tmp_path, small_pair, mo
     assert s["auto"]["noise_law"] == "impulsive" and s["auto"]["tangential_noise_sigma"] == 0.0
 
 
+def test_denoise_auto_says_when_it_ranked_on_patches(capsys, tmp_path, monkeypatch):
+    """Above the patch threshold the report says on how many vertices the candidates were ranked and the
+    JSON summary carries it; --search-vertices all ranks on the whole mesh (one candidate here: the
+    full search is the default test's)."""
+    import functools
+
+    import trimesh
+
+    import jaxmesh.cli.denoise as cli_denoise
+    from jaxmesh.tune import Candidate, choose_denoiser
+
+    small = functools.partial(choose_denoiser, candidates=[Candidate("taubin", {"iterations": 5})], paths=(),
+                              blend_draws=0)
+    monkeypatch.setattr(cli_denoise, "choose_denoiser", small)
+    ball = trimesh.creation.icosphere(5)                       # 10242 vertices > 6 x 1000
+    clean = str(tmp_path / "ball.ply")
+    jaxmesh.save(jaxmesh.Mesh.from_arrays(ball.vertices, ball.faces), clean)
+    noisy = str(tmp_path / "noisy.ply")
+    assert main(["noise", clean, noisy, "--sigma", "0.2"]) == 0
+    capsys.readouterr()
+    assert main(["denoise", noisy, str(tmp_path / "p.ply"), "--search-vertices", "1000"]) == 0
+    assert "ranked on patches of " in capsys.readouterr().out
+    assert main(["denoise", noisy, str(tmp_path / "w.ply"), "--search-vertices", "all", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["auto"]["search_vertices"] == 10242
+
+
 def test_denoise_auto_reads_impulsive_noise_and_says_so(capsys, tmp_path, monkeypatch):
     """A mesh made with `jaxmesh noise --model impulsive` is read as impulsive by the default
     command, which reports the fraction it read and ranks the robust candidates too."""
