@@ -4,6 +4,7 @@ default: method and parameters chosen blind); ``--lam auto`` / ``--tune`` tune;
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import time
 
@@ -61,8 +62,6 @@ def configure(p) -> None:
 
 def _search_vertices(text: str) -> int | None:
     """--search-vertices: an int >= PATCH_COUNT, or 'all' (None: the whole mesh)."""
-    import argparse
-
     if text == "all":
         return None
     try:

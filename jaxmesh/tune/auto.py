@@ -155,7 +155,7 @@ def _denoise(mesh: Mesh, x, candidate: Candidate, aux: dict):
 
 def _check(noisy: Mesh, candidates: Sequence[Candidate], paths: Sequence[SearchPath], draws, a, noise_model,
            blend_draws=0, blend_size=2, snapshots=(),
-           search_vertices=None) -> None:
+           search_vertices=None, antithetic=False) -> None:
     from ..denoise import METHODS
 
     if not isinstance(noisy, Mesh):
@@ -187,6 +187,8 @@ def _check(noisy: Mesh, candidates: Sequence[Candidate], paths: Sequence[SearchP
     if search_vertices is not None and (isinstance(search_vertices, bool) or not isinstance(search_vertices, int)
                                         or search_vertices < PATCH_COUNT):
         raise ValueError(f"search_vertices must be None or an int >= {PATCH_COUNT}, got {search_vertices!r}")
+    if not isinstance(antithetic, bool):
+        raise ValueError(f"antithetic must be True or False, got {antithetic!r}")
 
 
 def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequence[Candidate] = CANDIDATES,
@@ -230,9 +232,7 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
     from ..denoise import METHODS
 
     _check(noisy, list(candidates) + list(impulsive_candidates), paths, draws, a, noise_model, blend_draws,
-           blend_size, snapshots, search_vertices)
-    if not isinstance(antithetic, bool):
-        raise ValueError(f"antithetic must be True or False, got {antithetic!r}")
+           blend_size, snapshots, search_vertices, antithetic)
     law = _noise_law(noisy, sigma, noise_model)
     if law["law"] == "impulsive":
         candidates = list(candidates) + [c for c in impulsive_candidates if c not in candidates]

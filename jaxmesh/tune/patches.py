@@ -107,11 +107,11 @@ def sample_patches(mesh: Mesh, vertices: int = SEARCH_VERTICES, count: int = PAT
     x = np.asarray(mesh.vertices)
     faces = np.asarray(mesh.faces, np.int64)
     adjacency = adjacency_from_faces(faces, len(x))
-    seeds = _centres(mesh, int(count), int(seed))
-    per_patch = max(int(vertices) // len(seeds), 1)
+    centres = _centres(mesh, int(count), int(seed))
+    per_patch = max(int(vertices) // len(centres), 1)
     core = np.zeros(len(x), bool)
     region = np.zeros(len(x), bool)
-    for centre in seeds:
+    for centre in centres:
         d = _hops(adjacency, int(centre))
         reach = d[np.isfinite(d)]
         k = min(per_patch, reach.size) - 1
@@ -120,4 +120,4 @@ def sample_patches(mesh: Mesh, vertices: int = SEARCH_VERTICES, count: int = PAT
         region |= d <= r + margin
     xs, fs, index = submesh(x, faces, region)
     sub = Mesh.from_arrays(xs, fs, warn=False)
-    return Patches(sub, index, core[index][fs].all(axis=1), seeds)
+    return Patches(sub, index, core[index][fs].all(axis=1), centres)
