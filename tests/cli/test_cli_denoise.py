@@ -189,16 +189,16 @@ def test_denoise_auto_says_when_it_ranked_on_patches(capsys, tmp_path, monkeypat
     small = functools.partial(choose_denoiser, candidates=[Candidate("taubin", {"iterations": 5})], paths=(),
                               blend_draws=0)
     monkeypatch.setattr(cli_denoise, "choose_denoiser", small)
-    ball = trimesh.creation.icosphere(5)                       # 10242 vertices > 6 x 1000
+    ball = trimesh.creation.icosphere(4)                       # 2562 vertices > 6 x 64
     clean = str(tmp_path / "ball.ply")
     jaxmesh.save(jaxmesh.Mesh.from_arrays(ball.vertices, ball.faces), clean)
     noisy = str(tmp_path / "noisy.ply")
     assert main(["noise", clean, noisy, "--sigma", "0.2"]) == 0
     capsys.readouterr()
-    assert main(["denoise", noisy, str(tmp_path / "p.ply"), "--search-vertices", "1000"]) == 0
+    assert main(["denoise", noisy, str(tmp_path / "p.ply"), "--search-vertices", "64"]) == 0
     assert "ranked on patches of " in capsys.readouterr().out
     assert main(["denoise", noisy, str(tmp_path / "w.ply"), "--search-vertices", "all", "--json"]) == 0
-    assert json.loads(capsys.readouterr().out)["auto"]["search_vertices"] == 10242
+    assert json.loads(capsys.readouterr().out)["auto"]["search_vertices"] == 2562
 
 
 def test_denoise_auto_reads_impulsive_noise_and_says_so(capsys, tmp_path, monkeypatch):
