@@ -25,6 +25,24 @@ def segment_sum_scalars(
     return jnp.moveaxis(out, 0, -1)
 
 
+#: the longest last axis :func:`dot` writes out component by component
+DOT_UNROLL = 4
+
+
+def dot(a: Array, b: Array) -> Array:
+    """Σ_c a[..., c] b[..., c] over the last axis (shapes broadcast as in ``a * b``).
+
+    A last axis of at most :data:`DOT_UNROLL` components is written out, one
+    product per component: XLA's CPU backend can run ``jnp.sum(a * b, axis=-1)``
+    over a minor axis of 3 several times slower, most when one operand is a
+    broadcast and in float32 (``benchmarks/bench_dot.py``).  Not always faster
+    inside a larger fused loop: used where measured."""
+    d = max(jnp.shape(a)[-1], jnp.shape(b)[-1])
+    if d > DOT_UNROLL:
+        return jnp.sum(a * b, axis=-1)
+    return sum(a[..., min(c, jnp.shape(a)[-1] - 1)] * b[..., min(c, jnp.shape(b)[-1] - 1)] for c in range(d))
+
+
 def safe_norm(x: Float[Array, "*batch d"], axis: int = -1) -> Float[Array, "*batch"]:
     """Euclidean norm whose gradient at the zero vector is 0 instead of NaN."""
     sq = jnp.sum(x * x, axis=axis)

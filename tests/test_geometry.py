@@ -136,3 +136,15 @@ def test_hat_gradients_reproduce_linear_functions_in_jax_and_numpy():
     ok = np.arange(50) != 7
     np.testing.assert_allclose(got[ok], tangential[ok], atol=1e-10)
     assert area_n[7] == 0 and not grad_n[7].any()
+
+
+@pytest.mark.parametrize("shapes", [((4, 3), (4, 3)), ((2, 5, 3, 3), (1, 5, 1, 3)), ((6, 1), (6, 4)), ((3, 7), (1, 7)),
+                                    ((2,), (2,))])
+def test_dot_is_the_summed_product(shapes):
+    """The written-out dot product equals jnp.sum(a * b, axis=-1), broadcasting included (also past the unroll)."""
+    from jaxmesh._private import dot
+
+    a = jax.random.normal(jax.random.PRNGKey(0), shapes[0])
+    b = jax.random.normal(jax.random.PRNGKey(1), shapes[1])
+    np.testing.assert_allclose(dot(a, b), jnp.sum(a * b, axis=-1), rtol=1e-12, atol=1e-12)
+    assert dot(a, b).shape == jnp.sum(a * b, axis=-1).shape

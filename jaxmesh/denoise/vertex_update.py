@@ -33,7 +33,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from .._private import lift, safe_divide, safe_normalize, segment_sum_rows, segment_sum_scalars
+from .._private import dot, lift, safe_divide, safe_normalize, segment_sum_rows, segment_sum_scalars
 from ..mesh import Mesh
 from ..operators import umbrella
 from ._loop import iterate
@@ -68,12 +68,12 @@ def vertex_update(
 
     def relax(y):
         k = umbrella(mesh, y)
-        return y + t * (k - jnp.sum(k * m, axis=-1, keepdims=True) * m)
+        return y + t * (k - dot(k, m)[..., None] * m)
 
     def step(x):
         c = jnp.mean(x[..., mesh.faces, :], axis=-2)                            # (*b, F, 3)
         offset = c[..., :, None, :] - x[..., mesh.faces, :]                     # (*b, F, 3, 3)
-        proj = jnp.sum(offset * normals[..., :, None, :], axis=-1)              # (*b, F, 3)
+        proj = dot(offset, normals[..., :, None, :])                             # (*b, F, 3)
         move = (w[..., :, None] * proj)[..., None] * normals[..., :, None, :]   # (*b, F, 3, 3)
         flat = move.reshape(*move.shape[:-3], -1, 3)
         y = x + safe_divide(segment_sum_rows(flat, corners, mesh.num_vertices), total[..., None])

@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import dataclasses
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import scipy.sparse as sp
@@ -119,7 +120,7 @@ def estimate_impulsive_noise(mesh: Mesh) -> ImpulsiveNoise:
     others = sp.diags(1 / np.where(ok, g2, 1.0)) @ (sq - sp.diags(sq.diagonal()))
     z = np.where(ok, _normal_high_pass(mesh, mesh.vertices, _projection_normals(mesh)) / np.sqrt(np.where(ok, g2, 1)),
                  0.0)
-    p, v0, v1 = (float(v) for v in scale_mixture(jnp.asarray(z[ok] ** 2), EM_STEPS))
+    p, v0, v1 = (float(v) for v in _scale_mixture(jnp.asarray(z[ok] ** 2), EM_STEPS))
     delta = max(v1 - v0, 0.0) / float(np.mean(own[ok]))
     s0 = max(p * v1 + (1 - p) * v0 - p * delta, 0.0)
     s1 = s0 + delta
@@ -139,7 +140,11 @@ def estimate_impulsive_noise(mesh: Mesh) -> ImpulsiveNoise:
 
 def _posterior(z2, p, v0, v1) -> np.ndarray:
     """:func:`~jaxmesh.denoise.mixture_posterior` on host arrays (float64)."""
-    return np.asarray(mixture_posterior(jnp.asarray(z2), p, jnp.asarray(v0), jnp.asarray(v1)), dtype=np.float64)
+    return np.asarray(_posterior_jit(jnp.asarray(z2), p, jnp.asarray(v0), jnp.asarray(v1)), dtype=np.float64)
+
+
+_posterior_jit = jax.jit(mixture_posterior)
+_scale_mixture = jax.jit(scale_mixture, static_argnames=("steps",))
 
 
 def read_after_repair(mesh: Mesh, law: ImpulsiveNoise) -> ImpulsiveNoise:
@@ -157,10 +162,19 @@ def read_after_repair(mesh: Mesh, law: ImpulsiveNoise) -> ImpulsiveNoise:
 
     Returns:
         An :class:`ImpulsiveNoise` with the new fraction, levels and posteriors."""
+    r2 = _repair_residuals(mesh)
+    if not bool(jnp.isfinite(r2).all()):
+        raise FloatingPointError(f"impulse_repair produced non-finite coordinates at its defaults ({mesh.dtype}); "
+                                 "the input was finite, so try float64")
+    p, v0, v1 = _scale_mixture(r2, EM_STEPS)
+    pi = np.asarray(_posterior_jit(r2, p, v0, v1), dtype=np.float64)
+    return ImpulsiveNoise(float(p), float(np.sqrt(v1)), float(np.sqrt(v0)), pi, law.impulsive)
+
+
+@jax.jit
+def _repair_residuals(mesh: Mesh):
+    """r_i² of :func:`read_after_repair`: (n_i · (y_i − x_i))², x the repair at its defaults."""
     from ..denoise import METHODS
 
     fit = METHODS["impulse_repair"](mesh)
-    r2 = jnp.sum((mesh.vertices - fit.vertices) * vertex_normals(fit, "area"), axis=-1) ** 2
-    p, v0, v1 = scale_mixture(r2, EM_STEPS)
-    pi = np.asarray(mixture_posterior(r2, p, v0, v1), dtype=np.float64)
-    return ImpulsiveNoise(float(p), float(np.sqrt(v1)), float(np.sqrt(v0)), pi, law.impulsive)
+    return jnp.sum((mesh.vertices - fit.vertices) * vertex_normals(fit, "area"), axis=-1) ** 2

@@ -57,6 +57,7 @@ from __future__ import annotations
 
 import warnings
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import scipy.sparse as sp
@@ -100,6 +101,7 @@ def umbrella_square_row_norms(mesh: Mesh) -> np.ndarray:
 PROJECTION_SMOOTHING = 3
 
 
+@jax.jit
 def _projection_normals(mesh: Mesh):
     """n_i: the area-weighted vertex normals of the mesh after
     :data:`PROJECTION_SMOOTHING` umbrella steps x ← x + ½ K x (module docstring)."""
@@ -111,8 +113,15 @@ def _projection_normals(mesh: Mesh):
 def _normal_high_pass(mesh: Mesh, u, normals=None) -> np.ndarray:
     """n_i · (K² u)_i, n the projection normals (host array)."""
     n = _projection_normals(mesh) if normals is None else normals
-    s = jnp.sum(umbrella(mesh, umbrella(mesh, jnp.asarray(u, mesh.dtype))) * n, axis=-1)
-    return np.asarray(s, dtype=np.float64)
+    return np.asarray(_k2_parts(mesh, jnp.asarray(u, mesh.dtype), n)[0], dtype=np.float64)
+
+
+@jax.jit
+def _k2_parts(mesh: Mesh, u, n):
+    """(n_i · (K² u)_i, (I − n_i n_iᵀ)(K² u)_i): the normal and tangential parts of K² u."""
+    k2 = umbrella(mesh, umbrella(mesh, u))
+    normal = jnp.sum(k2 * n, axis=-1)
+    return normal, k2 - normal[:, None] * n
 
 
 def _patch_statistic(z2: np.ndarray, patches: sp.csr_matrix, ok: np.ndarray, quantile: float) -> float:
@@ -263,8 +272,7 @@ def estimate_tangential_noise(mesh: Mesh, quantile: float = 0.1, draws: int = 2)
     ring.data[:] = 1
 
     def statistic(u) -> float:
-        k2 = umbrella(mesh, umbrella(mesh, jnp.asarray(u, mesh.dtype)))
-        t = np.asarray(k2 - jnp.sum(k2 * n, axis=-1, keepdims=True) * n, dtype=np.float64)
+        t = np.asarray(_k2_parts(mesh, jnp.asarray(u, mesh.dtype), n)[1], dtype=np.float64)
         return _patch_statistic(np.sum(t * t, axis=1) / gs**2, ring, ok, quantile)
 
     t1, t2 = _tangent_frames(mesh, np.asarray(n, dtype=np.float64))

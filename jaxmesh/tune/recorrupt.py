@@ -42,12 +42,14 @@ the fandisk at 0.7ℓ̄, so the chooser draws independently unless asked.
 
 from __future__ import annotations
 
+import functools
+
 import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from .._private import RECORRUPTION_STREAM, library_key, lift
+from .._private import RECORRUPTION_STREAM, dot, library_key, lift
 from ..mesh import Mesh
 
 __all__ = ["edge_tilt", "recorruptions"]
@@ -64,7 +66,7 @@ def edge_tilt(mesh: Mesh, nu: Float[Array, "F 3"], ell, u: Float[Array, "*batch 
 
     Returns:
         (*batch, F, 3)."""
-    h = jnp.sum(u[..., mesh.faces, :] * lift(nu[:, None, :], u.ndim + 1), axis=-1)       # (*b, F, 3)
+    h = dot(u[..., mesh.faces, :], lift(nu[:, None, :], u.ndim + 1))                  # (*b, F, 3)
     return (h[..., [1, 2, 0]] - h[..., [2, 0, 1]]) / ell
 
 
@@ -89,18 +91,28 @@ def recorruptions(noisy: Mesh, nu, n, ell, s, s_t: float, draws: int, key, salt:
 
     Returns:
         (z (draws, V, 3), tr(AᵀAΣ)/F)."""
-    y = noisy.vertices
     k = library_key(key, RECORRUPTION_STREAM)
     k = jax.random.fold_in(k, salt) if salt else k
-    s_v = jnp.asarray(np.broadcast_to(np.asarray(s, dtype=np.float64), (noisy.num_vertices,)), y.dtype)
+    s_v = jnp.asarray(np.broadcast_to(np.asarray(s, dtype=np.float64), (noisy.num_vertices,)), noisy.dtype)
+    zs = _fields(k, s_v, n, jnp.asarray(s_t, noisy.dtype), draws, antithetic)
+    return zs, float(_trace(noisy, nu, n, s_v, jnp.asarray(s_t, noisy.dtype), ell))
+
+
+@functools.partial(jax.jit, static_argnames=("draws", "antithetic"))
+def _fields(k, s_v, n, s_t, draws: int, antithetic: bool):
+    """The fields z of :func:`recorruptions`, (draws, V, 3), in one program."""
     fresh = (draws + 1) // 2 if antithetic else draws
-    zs = s_v[None, :, None] * jax.random.normal(k, (fresh, noisy.num_vertices, 1), y.dtype) * n[None]
-    if s_t > 0:
-        xi = jax.random.normal(jax.random.fold_in(k, 1), (fresh, noisy.num_vertices, 3), y.dtype)
-        zs = zs + s_t * (xi - jnp.sum(xi * n[None], axis=-1, keepdims=True) * n[None])
+    zs = s_v[None, :, None] * jax.random.normal(k, (fresh, s_v.shape[0], 1), s_v.dtype) * n[None]
+    xi = jax.random.normal(jax.random.fold_in(k, 1), (fresh, s_v.shape[0], 3), s_v.dtype)
+    zs = zs + s_t * (xi - jnp.sum(xi * n[None], axis=-1, keepdims=True) * n[None])    # + 0 exactly when s_t = 0
     if antithetic:
         zs = jnp.stack([zs, -zs], axis=1).reshape(2 * fresh, *zs.shape[1:])[:draws]   # z_0, −z_0, z_1, −z_1, …
+    return zs
+
+
+@jax.jit
+def _trace(noisy: Mesh, nu, n, s_v, s_t, ell):
+    """tr(AᵀAΣ)/F of :func:`recorruptions` (each edge difference sees its two vertices)."""
     dots = jnp.sum(nu[:, None, :] * n[noisy.faces], axis=-1) ** 2                # (F, 3)
     per_vertex = s_t**2 * jnp.sum(nu * nu, axis=-1)[:, None] + (s_v[noisy.faces] ** 2 - s_t**2) * dots  # Var(ν_f·z_v)
-    trace = float(jnp.sum(per_vertex[:, [1, 2, 0]] + per_vertex[:, [2, 0, 1]]) / ell**2 / noisy.num_faces)
-    return zs, trace
+    return jnp.sum(per_vertex[:, [1, 2, 0]] + per_vertex[:, [2, 0, 1]]) / ell**2 / noisy.num_faces
