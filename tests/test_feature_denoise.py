@@ -3,6 +3,7 @@ and the shared vertex update against plain numpy loops written from the papers;
 the face graph against brute force; the blind chooser's argument checks."""
 
 import itertools
+import json
 
 import jax
 import jax.numpy as jnp
@@ -309,17 +310,45 @@ def test_a_path_estimates_what_the_candidate_loop_estimates(sphere, which):
 
     path = PATHS[which]
     noisy = jaxmesh.add_noise(sphere, 0.2, 5)
-    c = choose_denoiser(noisy, candidates=[], paths=(path,), key=3, blend_draws=0)   # the ranking alone
+    c = choose_denoiser(noisy, candidates=[], paths=(path,), key=3, blend_draws=0, race_keep=None)  # ranking alone
     assert len(c.table) == len(path.settings) and {r[0] for r in c.table} == {path.method}
     method, params, risk = [r for r in c.table if r[1]["iterations"] < path.max_iterations][0]
     again = choose_denoiser(noisy, candidates=[Candidate(method, params)], paths=(), key=3, blend_draws=0)
     assert again.table[0][2] == pytest.approx(risk, rel=1e-9, abs=1e-12)
     others = [Candidate(method, {**params, "iterations": k})
               for k in {1, params["iterations"] + 1, path.max_iterations} - {params["iterations"]}]
-    worse = choose_denoiser(noisy, candidates=others, paths=(), key=3, blend_draws=0)
+    worse = choose_denoiser(noisy, candidates=others, paths=(), key=3, blend_draws=0, race_keep=None)
     assert min(r[2] for r in worse.table) >= risk
     np.testing.assert_allclose(c.mesh.vertices, jaxmesh.denoise.denoise(noisy, c.method, **c.params).vertices,
                                atol=1e-12)
+
+
+def test_racing_finishes_the_best_of_each_family_on_every_draw(sphere):
+    """After the first draw only the race_keep best settings of each family go on: their
+    estimates are those of the unraced search, they come first in the table, and keeping
+    as many as a family has is the unraced search itself."""
+    from jaxmesh.tune.auto import PATHS
+
+    noisy = jaxmesh.add_noise(sphere, 0.3, 2)
+    cands = [Candidate("taubin", {"iterations": k}) for k in (1, 3, 10, 30)] + [Candidate("guided_normal", {})]
+    kw = dict(candidates=cands, paths=(PATHS[1],), key=4, blend_draws=0)
+    full = choose_denoiser(noisy, race_keep=None, **kw)
+    raced = choose_denoiser(noisy, race_keep=2, **kw)
+    every = choose_denoiser(noisy, race_keep=len(PATHS[1].settings), **kw)
+    estimate = {(m, json.dumps(p, sort_keys=True)): r for m, p, r in full.table}
+    finished = 2 + 1 + 2          # taubin's best two, the one guided, the path's best two settings
+    assert len(raced.table) == len(full.table)
+    for m, p, r in raced.table[:finished]:
+        assert r == pytest.approx(estimate[m, json.dumps(p, sort_keys=True)], rel=1e-9, abs=1e-12)
+    head = raced.table[:finished]
+    assert sorted(r[2] for r in head) == [r[2] for r in head]
+    assert sum(m == "taubin" for m, _, _ in head) == 2 and sum(m == "bilateral_normal" for m, _, _ in head) == 2
+    assert raced.table[0][2] == pytest.approx(min(estimate[m, json.dumps(p, sort_keys=True)] for m, p, _ in head))
+    assert [(m, p) for m, p, _ in every.table] == [(m, p) for m, p, _ in full.table]
+    np.testing.assert_allclose([r[2] for r in every.table], [r[2] for r in full.table], rtol=1e-9, atol=1e-12)
+    for bad in (0, -1, True):
+        with pytest.raises(ValueError, match="race_keep must be None or an int >= 1"):
+            choose_denoiser(noisy, race_keep=bad, **kw)
 
 
 def test_choose_denoiser_refuses_a_bad_path(sphere):

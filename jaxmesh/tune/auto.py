@@ -19,6 +19,14 @@ along the pilot's vertex normals n_i as Σ_i = σ² n_i n_iᵀ + σ_t² (I − n
 at its defaults; its face and vertex normals are held fixed.  Every candidate
 sees the same draws (common random numbers).
 
+**Racing.**  Every setting (each fixed candidate, each setting of a path with its
+count) is first estimated on one draw; then only the ``RACE_KEEP`` best of each
+family (each method among the fixed candidates, each path) go on to the other
+draws, and the winner and the leaders are taken among those.  The draws are
+common to every candidate, so the first draw's order within a family is already
+close to the final one, and the others cost little (:data:`RACE_KEEP` = 2 of the
+family's settings instead of all of them).
+
 **The decision.**  The candidate with the least estimate wins, unless a convex
 blend of leaders (the best of each path and of each fixed method) is estimated
 better on fresh draws (:mod:`jaxmesh.tune.blend`).  It is compared with doing
@@ -52,12 +60,12 @@ from .impulsive import estimate_impulsive_noise, read_after_repair
 from .noise_level import blind_caveats, estimate_tangential_noise, noise_sigma
 from .paths import (BILATERAL_FEATURE_MAX_ITERATIONS, BILATERAL_FEATURE_SETTING, BILATERAL_PATH_FIXED,
                     BILATERAL_PATH_MAX_ITERATIONS, BILATERAL_PATH_SIGMAS, PATHS, TAUBIN_LAMS,
-                    TAUBIN_MAX_ITERATIONS, TAUBIN_PASS_BANDS, SearchPath, path_rows, taubin_mu)
+                    TAUBIN_MAX_ITERATIONS, TAUBIN_PASS_BANDS, SearchPath, path_risks, taubin_mu)
 from .patches import PATCH_COUNT, PATCH_FACTOR, SEARCH_VERTICES, sample_patches
 from .recorrupt import edge_tilt, recorruptions
 
-__all__ = ["Candidate", "CANDIDATES", "IMPULSIVE_CANDIDATES", "SearchPath", "PATHS", "NOISE_MODELS", "AutoResult",
-           "edge_tilt", "choose_denoiser", "TAUBIN_LAMS", "TAUBIN_PASS_BANDS", "TAUBIN_MAX_ITERATIONS", "taubin_mu",
+__all__ = ["Candidate", "CANDIDATES", "IMPULSIVE_CANDIDATES", "RACE_KEEP", "SearchPath", "PATHS", "NOISE_MODELS",
+           "AutoResult", "edge_tilt", "choose_denoiser", "TAUBIN_LAMS", "TAUBIN_PASS_BANDS", "TAUBIN_MAX_ITERATIONS", "taubin_mu",
            "BILATERAL_PATH_SIGMAS", "BILATERAL_PATH_FIXED", "BILATERAL_PATH_MAX_ITERATIONS",
            "BILATERAL_FEATURE_SETTING", "BILATERAL_FEATURE_MAX_ITERATIONS"]
 
@@ -82,6 +90,8 @@ CANDIDATES: tuple[Candidate, ...] = tuple(
     _grid("bilateral_normal", sigma_r=(0.2, 0.35, 0.6), sigma_s=(1.0, 2.0))
     + _grid("guided_normal", sigma_r=(0.15, 0.3, 0.45), sigma_s=(1.0, 2.0))
 )
+#: after the first recorruption, the settings of each family that go on to the other draws (module docstring)
+RACE_KEEP = 2
 #: the candidates added when the noise is read as impulsive: impulse repair (L0 minimisation, the literature's
 #: answer, is left out: on the shared meshes it did not beat guided filtering and cost the most)
 IMPULSIVE_CANDIDATES: tuple[Candidate, ...] = tuple(_grid("impulse_repair", alpha=(0.3, 1.0)))
@@ -153,9 +163,21 @@ def _denoise(mesh: Mesh, x, candidate: Candidate, aux: dict):
     return _run(mesh, x, cont, aux, candidate.method, statics)
 
 
+@functools.partial(jax.jit, static_argnames=("method", "statics"))
+def _tilt(mesh: Mesh, noisy_input, target, nu, ell, continuous: dict, aux: dict, method: str, statics: tuple):
+    """T = A(f(ŷ) − ỹ) of one candidate on one recorruption, in one program."""
+    return edge_tilt(mesh, nu, ell, _run(mesh, noisy_input, continuous, aux, method, statics) - target)
+
+
+@jax.jit
+def _pilot_normals(pilot: Mesh):
+    """The pilot's face normals ν_f and area-weighted vertex normals n_i."""
+    return face_normals(pilot), vertex_normals(pilot, "area")
+
+
 def _check(noisy: Mesh, candidates: Sequence[Candidate], paths: Sequence[SearchPath], draws, a, noise_model,
            blend_draws=0, blend_size=2, snapshots=(),
-           search_vertices=None, antithetic=False) -> None:
+           search_vertices=None, antithetic=False, race_keep=None) -> None:
     from ..denoise import METHODS
 
     if not isinstance(noisy, Mesh):
@@ -189,6 +211,8 @@ def _check(noisy: Mesh, candidates: Sequence[Candidate], paths: Sequence[SearchP
         raise ValueError(f"search_vertices must be None or an int >= {PATCH_COUNT}, got {search_vertices!r}")
     if not isinstance(antithetic, bool):
         raise ValueError(f"antithetic must be True or False, got {antithetic!r}")
+    if race_keep is not None and (isinstance(race_keep, bool) or not isinstance(race_keep, int) or race_keep < 1):
+        raise ValueError(f"race_keep must be None or an int >= 1, got {race_keep!r}")
 
 
 def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequence[Candidate] = CANDIDATES,
@@ -196,7 +220,8 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
                     paths: Sequence[SearchPath] = PATHS, noise_model: str = "auto", draws: int = 2,
                     blend_draws: int = BLEND_DRAWS, blend_size: int = BLEND_SIZE,
                     snapshots: Sequence[float] = SNAPSHOT_FACTORS, a: float = 0.5, key=0,
-                    search_vertices: int | None = SEARCH_VERTICES, antithetic: bool = False) -> AutoResult:
+                    search_vertices: int | None = SEARCH_VERTICES, antithetic: bool = False,
+                    race_keep: int | None = RACE_KEEP) -> AutoResult:
     """Pick the candidate with the least recorrupted normal-error estimate
     (module docstring) and denoise ``noisy`` with it, blind.
 
@@ -225,6 +250,9 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
             the winner runs on the whole mesh; ``None``: always rank on the whole mesh.
         antithetic: draw the recorruptions in (z, −z) pairs (:mod:`jaxmesh.tune.recorrupt`;
             measured no better than independent draws, the default: the denoising guide).
+        race_keep: after the first draw, how many settings of each family (each method among
+            the fixed candidates, each search path) go on to the other draws (module docstring,
+            *Racing*); ``None``: every setting on every draw.
 
     Returns:
         An :class:`AutoResult`: the method and parameters chosen (or the blend), the
@@ -232,7 +260,7 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
     from ..denoise import METHODS
 
     _check(noisy, list(candidates) + list(impulsive_candidates), paths, draws, a, noise_model, blend_draws,
-           blend_size, snapshots, search_vertices, antithetic)
+           blend_size, snapshots, search_vertices, antithetic, race_keep)
     law = _noise_law(noisy, sigma, noise_model)
     if law["law"] == "impulsive":
         candidates = list(candidates) + [c for c in impulsive_candidates if c not in candidates]
@@ -243,7 +271,7 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
         search, core = patches.mesh, patches.core_faces
         s_vertex = s_vertex if np.ndim(s_vertex) == 0 else np.asarray(s_vertex)[patches.vertices]
     ranked = _rank(search, core, mean_edge_length(noisy), candidates, paths, s_vertex, law["tangential"], draws,
-                   blend_draws, blend_size, snapshots, a, key, antithetic)
+                   blend_draws, blend_size, snapshots, a, key, antithetic, race_keep)
     components, risk, noisy_risk, table = ranked
     y = noisy.vertices
     auxes = {m: METHODS[m].prepare(noisy) for m in {c[0] for c in components}}
@@ -260,14 +288,17 @@ def _tilts(noisy: Mesh, zs, candidates: Sequence[Candidate], auxes: dict, nu, el
     one array (D, F, 3) per candidate, candidate by candidate.  One mesh per call: batching
     the draws or the settings into one call ran slower on CPU under the ``jaxmesh``
     command's XLA flags (:mod:`jaxmesh.compiler`) and compiled a program per batch size."""
+    from ..denoise import METHODS
+
     y = noisy.vertices
+    pairs = list(zip(y[None] + a * zs, y[None] - zs / a))
     for c in candidates:
-        yield jnp.stack([edge_tilt(noisy, nu, ell, _denoise(noisy, y + a * z, c, auxes[c.method]) - (y - z / a))
-                         for z in zs])
+        cont, statics = METHODS[c.method].split(**c.params)
+        yield jnp.stack([_tilt(noisy, x, t, nu, ell, cont, auxes[c.method], c.method, statics) for x, t in pairs])
 
 
 def _rank(noisy: Mesh, core, ell, candidates, paths, s_vertex, s_t, draws, blend_draws, blend_size, snapshots, a,
-          key, antithetic=False) -> tuple:
+          key, antithetic=False, race_keep=None) -> tuple:
     """The search of :func:`choose_denoiser` on ``noisy`` (the whole mesh or its patches, where only the
     faces of ``core`` count): (components, risk, doing nothing's risk, table), risks per counted face."""
     from ..denoise import METHODS
@@ -276,7 +307,7 @@ def _rank(noisy: Mesh, core, ell, candidates, paths, s_vertex, s_t, draws, blend
     methods = {c.method for c in candidates} | {"guided_normal"} | {path.method for path in paths}
     auxes = {m: METHODS[m].prepare(noisy) for m in methods}
     pilot = noisy.with_vertices(_denoise(noisy, y, Candidate("guided_normal", {}), auxes["guided_normal"]))
-    nu, n = face_normals(pilot), vertex_normals(pilot, "area")
+    nu, n = _pilot_normals(pilot)
     per_face = 1.0
     if core is not None:    # faces outside the cores tilt by nothing: ν_f = 0
         nu = nu * jnp.asarray(core, nu.dtype)[:, None]
@@ -284,15 +315,8 @@ def _rank(noisy: Mesh, core, ell, candidates, paths, s_vertex, s_t, draws, blend
     zs, trace = recorruptions(noisy, nu, n, ell, s_vertex, s_t, draws, key, antithetic=antithetic)
     constant = (1 + 1 / a**2) * trace
 
-    squares = [float(jnp.sum(t**2)) for t in _tilts(noisy, zs, candidates, auxes, nu, ell, a)]
-    table = [(c.method, dict(c.params), sq / noisy.num_faces / draws - constant) for c, sq in zip(candidates, squares)]
-    leaders = []
-    leaders += [min((r for r in table if r[0] == m), key=lambda r: r[2]) for m in dict.fromkeys(r[0] for r in table)]
-    for path in paths:
-        rows = path_rows(noisy, path, y[None] + a * zs, y[None] - zs / a, nu, ell, auxes[path.method], constant)
-        table += rows
-        leaders.append(min(rows, key=lambda row: row[2]))
-    table.sort(key=lambda row: row[2])
+    table, leaders = _race(noisy, candidates, paths, y[None] + a * zs, y[None] - zs / a, nu, ell, auxes, constant,
+                           race_keep)
     components, risk = ((table[0][0], table[0][1], 1.0),), table[0][2]
     rows = leaders + snapshot_rows(leaders[len(leaders) - len(paths):], snapshots, leaders)
     if blend_draws and blend_size > 1 and len(rows) > 1:
@@ -306,6 +330,64 @@ def _rank(noisy: Mesh, core, ell, candidates, paths, s_vertex, s_t, draws, blend
             risk = total / noisy.num_faces / blend_draws - constant
     table = [(m, p, r * per_face) for m, p, r in table]
     return components, risk * per_face, (1 + a**2) * trace * per_face, table
+
+
+@dataclasses.dataclass(frozen=True)
+class _Entry:
+    """One setting in the race: a fixed candidate, or one setting of a search path (its count searched)."""
+
+    family: tuple
+    candidate: Candidate
+    path: SearchPath | None = None
+
+
+def _entry_sums(noisy: Mesh, entry: _Entry, inputs, targets, nu, ell, auxes: dict) -> np.ndarray:
+    """Σ_d ‖A(f(ŷ_d) − ỹ_d)‖²/F over the draws given: (1,) for a fixed candidate, one per
+    iteration count for a path setting (:func:`~jaxmesh.tune.paths.path_risks`)."""
+    from ..denoise import METHODS
+
+    c = entry.candidate
+    if entry.path is not None:
+        return path_risks(noisy, entry.path, c.params, inputs, targets, nu, ell, auxes[c.method])
+    cont, statics = METHODS[c.method].split(**c.params)
+    total = sum(float(jnp.sum(_tilt(noisy, x, t, nu, ell, cont, auxes[c.method], c.method, statics) ** 2))
+                for x, t in zip(inputs, targets))
+    return np.array([total / noisy.num_faces])
+
+
+def _race(noisy: Mesh, candidates, paths, inputs, targets, nu, ell, auxes: dict, constant: float,
+          race_keep: int | None) -> tuple[list, list]:
+    """(table, leaders) of the ranking (module docstring, *Racing*): every setting on the first draw, then
+    the ``race_keep`` best of each family on the others (all of them on every draw when None).  The table
+    holds the settings raced to the end, best first, then those dropped after the first draw, best first
+    on that draw; the leaders are the best of each family among the first."""
+    entries = [_Entry(("fixed", c.method), c) for c in candidates]
+    entries += [_Entry(("path", i), Candidate(path.method, dict(setting)), path)
+                for i, path in enumerate(paths) for setting in path.settings]
+    draws = len(inputs)
+    first = draws if race_keep is None else 1
+    sums = [_entry_sums(noisy, e, inputs[:first], targets[:first], nu, ell, auxes) for e in entries]
+    families = list(dict.fromkeys(e.family for e in entries))
+    finished = list(range(len(entries)))
+    if first < draws:
+        finished = [i for family in families
+                    for i in sorted((i for i, e in enumerate(entries) if e.family == family),
+                                    key=lambda i: float(np.min(sums[i])))[:race_keep]]
+        for i in finished:
+            sums[i] = sums[i] + _entry_sums(noisy, entries[i], inputs[first:], targets[first:], nu, ell, auxes)
+
+    def row(i: int) -> tuple:
+        e, t = entries[i], int(np.argmin(sums[i]))
+        params = dict(e.candidate.params) if e.path is None else {**e.candidate.params, **dict(e.path.fixed),
+                                                                   "iterations": t + 1}
+        return e.candidate.method, params, float(sums[i][t]) / (draws if i in finished else first) - constant
+
+    rows = {i: row(i) for i in range(len(entries))}
+    leaders = [min((rows[i] for i in finished if entries[i].family == family), key=lambda r: r[2])
+               for family in families]
+    table = (sorted((rows[i] for i in finished), key=lambda r: r[2])
+             + sorted((rows[i] for i in rows if i not in finished), key=lambda r: r[2]))
+    return table, leaders
 
 
 def _noise_law(noisy: Mesh, sigma, noise_model: str) -> dict:

@@ -37,7 +37,7 @@ from .recorrupt import edge_tilt
 
 __all__ = ["SearchPath", "PATHS", "TAUBIN_LAMS", "TAUBIN_PASS_BANDS", "TAUBIN_MAX_ITERATIONS", "taubin_mu",
            "BILATERAL_PATH_SIGMAS", "BILATERAL_PATH_FIXED", "BILATERAL_PATH_MAX_ITERATIONS",
-           "BILATERAL_FEATURE_SETTING", "BILATERAL_FEATURE_MAX_ITERATIONS", "path_rows"]
+           "BILATERAL_FEATURE_SETTING", "BILATERAL_FEATURE_MAX_ITERATIONS", "path_risks"]
 
 #: the Taubin path's grid (module docstring): shrinking steps λ, pass bands k_PB, and every count up to the last
 TAUBIN_LAMS = (0.2, 0.35, 0.5, 0.7)
@@ -106,29 +106,25 @@ def _path_risks(mesh: Mesh, inputs, targets, nu, ell, continuous: dict, aux: dic
     return jax.lax.scan(step, inputs, None, length=count)[1]
 
 
-def path_rows(mesh: Mesh, path: SearchPath, inputs, targets, nu, ell, aux: dict, constant: float) -> list:
-    """(method, params, risk) for the best count of every setting of ``path``.
+def path_risks(mesh: Mesh, path: SearchPath, setting: dict, inputs, targets, nu, ell, aux: dict) -> np.ndarray:
+    """Σ‖A(x_t − ỹ)‖²/F summed over the draws, after every iteration t = 1..``path.max_iterations``
+    of one setting of ``path`` (x_0 = ŷ).
 
     Arguments:
         mesh: the noisy mesh (single).
         path: the family.
+        setting: one of ``path.settings``.
         inputs: the recorrupted inputs ŷ, (D, V, 3).
         targets: the targets ỹ, (D, V, 3).
         nu: the pilot's unit face normals, (F, 3).
         ell: the mean edge length ℓ̄.
         aux: the method's prepared arrays.
-        constant: the noise constant subtracted from every estimate.
 
     Returns:
-        One row per setting."""
+        (max_iterations,) float64, the sum over the D draws."""
     from ..denoise import METHODS
 
-    rows = []
-    for setting in path.settings:
-        cont, statics = METHODS[path.method].split(**setting, **dict(path.fixed))
-        statics = tuple(kv for kv in statics if kv[0] != "iterations")
-        risk = np.asarray(_path_risks(mesh, inputs, targets, nu, ell, cont, aux, path.method, statics,
-                                      path.max_iterations))
-        t = int(np.argmin(risk))
-        rows.append((path.method, {**setting, **dict(path.fixed), "iterations": t + 1}, float(risk[t]) - constant))
-    return rows
+    cont, statics = METHODS[path.method].split(**setting, **dict(path.fixed))
+    statics = tuple(kv for kv in statics if kv[0] != "iterations")
+    risk = _path_risks(mesh, inputs, targets, nu, ell, cont, aux, path.method, statics, path.max_iterations)
+    return np.asarray(risk, np.float64) * len(inputs)
