@@ -13,9 +13,11 @@ from start to exit (import, read, search, write):
 * ``--method taubin`` at its defaults, warm: one filter, the peer the default's
   time is compared with.
 
-``--big`` adds the bunny subdivided twice (midpoints, ~556k vertices): the
-default with its own empty cache and warm, and Taubin.  Each process's JSON summary gives what the default chose and
-on how many vertices it ranked.  Not part of the test suite: numbers depend on the
+``--big`` adds the bunny subdivided once and twice (midpoints, ~139k and ~556k
+vertices): the default with its own empty cache and warm, and Taubin.  Each
+process's JSON summary gives what the default chose, on how many vertices it
+ranked, and the seconds of its stages (``AutoResult.seconds``): the last table
+puts them against V.  Not part of the test suite: numbers depend on the
 machine; compare ratios.
 """
 
@@ -57,7 +59,7 @@ def describe(summary: dict) -> str:
     return f"{parts} (ranked on {auto['search_vertices']} vertices)"
 
 
-def bench_mesh(name: str, noisy: Path, work: Path, rows: list, whole: bool, cold: bool) -> None:
+def bench_mesh(name: str, noisy: Path, work: Path, rows: list, stages: list, whole: bool, cold: bool) -> None:
     cache = work / f"cache-{name}"
     out = lambda tag: str(work / f"{name}-{tag}.ply")     # noqa: E731
     if cold:
@@ -65,12 +67,14 @@ def bench_mesh(name: str, noisy: Path, work: Path, rows: list, whole: bool, cold
         rows.append((name, "default (auto), empty compilation cache", t, describe(s)))
     t_auto, s = timed_run(["denoise", str(noisy), out("warm")], cache)
     rows.append((name, "default (auto), warm cache", t_auto, describe(s)))
+    stages.append((s["auto"]["search_vertices"], t_auto, s["auto"]["seconds"], name))
     if whole:
         t, s = timed_run(["denoise", str(noisy), out("whole"), "--search-vertices", "all"], cache)
         rows.append((name, "auto --search-vertices all, warm cache", t, describe(s)))
     t_taubin, s = timed_run(["denoise", str(noisy), out("taubin"), "--method", "taubin"], cache)
     rows.append((name, "--method taubin (one filter), warm cache", t_taubin, describe(s)))
     rows.append((name, "default / one filter", t_auto / t_taubin, ""))
+    stages[-1] += (t_taubin,)
 
 
 def main() -> None:
@@ -80,28 +84,39 @@ def main() -> None:
     ap.add_argument("--skip-whole", action="store_true", help="leave out the whole-mesh search (the slowest row)")
     args = ap.parse_args()
     rows: list = []
+    stages: list = []
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
         clean = work / "bunny.ply"
         jaxmesh.save(jaxmesh.data.load_sample("bunny"), clean)
-        noisy = work / "bunny-noisy.ply"
-        subprocess.run(JAXMESH + ["noise", str(clean), str(noisy), "--sigma", str(args.sigma)], check=True,
-                       env={**os.environ, "JAXMESH_CACHE_DIR": "off"}, capture_output=True)
-        bench_mesh("bunny", noisy, work, rows, not args.skip_whole, cold=True)
+        meshes = [("bunny", clean)]
         if args.big:
             m = jaxmesh.load(clean)
-            big = trimesh.Trimesh(np.asarray(m.vertices), np.asarray(m.faces), process=False).subdivide().subdivide()
-            clean_big, noisy_big = work / "bunny4.ply", work / "bunny4-noisy.ply"
-            jaxmesh.save(jaxmesh.Mesh.from_arrays(big.vertices, big.faces, warn=False), clean_big)
-            subprocess.run(JAXMESH + ["noise", str(clean_big), str(noisy_big), "--sigma", str(args.sigma)],
-                           check=True, env={**os.environ, "JAXMESH_CACHE_DIR": "off"}, capture_output=True)
-            bench_mesh(f"bunny subdivided twice ({len(big.vertices)} vertices)", noisy_big, work, rows,
-                       whole=False, cold=True)
+            big = trimesh.Trimesh(np.asarray(m.vertices), np.asarray(m.faces), process=False)
+            for times in (1, 2):
+                big = big.subdivide()
+                path = work / f"bunny-{times}.ply"
+                jaxmesh.save(jaxmesh.Mesh.from_arrays(big.vertices, big.faces, warn=False), path)
+                meshes.append((f"bunny subdivided {'once' if times == 1 else 'twice'} ({len(big.vertices)} vertices)",
+                               path))
+        for i, (name, path) in enumerate(meshes):
+            noisy = work / f"noisy-{i}.ply"
+            subprocess.run(JAXMESH + ["noise", str(path), str(noisy), "--sigma", str(args.sigma)], check=True,
+                           env={**os.environ, "JAXMESH_CACHE_DIR": "off"}, capture_output=True)
+            bench_mesh(name, noisy, work, rows, stages, whole=i == 0 and not args.skip_whole, cold=True)
     print(f"# blind `jaxmesh denoise` end to end (σ = {args.sigma}ℓ̄, {os.cpu_count()} CPU cores)\n")
     print("| mesh | run | seconds (ratio) | choice |")
     print("|---|---|---|---|")
     for name, what, value, choice in rows:
         print(f"| {name} | {what} | {value:.2f} | {choice} |")
+    print("\n# the warm default's stages against the mesh's size (seconds; AutoResult.seconds)\n")
+    print("| mesh | ranked on V | command | noise law | patches | ranking | choice | rest (start-up, I/O) "
+          "| one Taubin filter |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for ranked, total, sec, name, taubin in stages:
+        rest = total - sum(sec.values())
+        print(f"| {name} | {ranked} | {total:.2f} | {sec['noise_law']:.2f} | {sec['patches']:.2f} | "
+              f"{sec['ranking']:.2f} | {sec['choice']:.2f} | {rest:.2f} | {taubin:.2f} |")
 
 
 if __name__ == "__main__":

@@ -44,6 +44,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import itertools
+import time
 from collections.abc import Iterator, Sequence
 from typing import Any
 
@@ -114,7 +115,10 @@ class AutoResult:
       ``improved = risk < noisy_risk``;
     * ``table``: every candidate with its estimate, best first;
     * ``search_vertices``: the vertices of the mesh the candidates were ranked on (the
-      whole mesh's, or its patches', :mod:`jaxmesh.tune.patches`).
+      whole mesh's, or its patches', :mod:`jaxmesh.tune.patches`);
+    * ``seconds``: wall seconds of each stage: ``"noise_law"`` (read on the whole mesh),
+      ``"patches"`` (sampling them; 0 on the whole mesh), ``"ranking"`` (the race and the
+      blend's draws) and ``"choice"`` (the choice run on the whole mesh).
     """
 
     method: str
@@ -131,6 +135,7 @@ class AutoResult:
     noise_law: str = "gaussian"
     fraction: float = 1.0
     search_vertices: int = 0
+    seconds: dict = dataclasses.field(default_factory=dict)
 
     @property
     def rms_tilt_degrees(self) -> float:
@@ -144,7 +149,7 @@ class AutoResult:
                 "noise_law": self.noise_law, "noise_fraction": self.fraction,
                 "estimated_rms_normal_error_deg": self.rms_tilt_degrees,
                 "noisy_rms_normal_error_deg": float(np.degrees(np.sqrt(max(self.noisy_risk, 0.0)))),
-                "improved": self.improved, "search_vertices": self.search_vertices,
+                "improved": self.improved, "search_vertices": self.search_vertices, "seconds": self.seconds,
                 "components": [{"method": m, "params": p, "weight": w} for m, p, w in self.components],
                 "candidates": [{"method": m, "params": p, "risk": r} for m, p, r in self.table]}
 
@@ -261,7 +266,9 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
 
     _check(noisy, list(candidates) + list(impulsive_candidates), paths, draws, a, noise_model, blend_draws,
            blend_size, snapshots, search_vertices, antithetic, race_keep)
+    clock = [time.perf_counter()]
     law = _noise_law(noisy, sigma, noise_model)
+    clock.append(time.perf_counter())
     if law["law"] == "impulsive":
         candidates = list(candidates) + [c for c in impulsive_candidates if c not in candidates]
     search, s_vertex, core = noisy, law["vertex_sigma"], None
@@ -270,17 +277,21 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
         patches = sample_patches(noisy, search_vertices, seed=seed)
         search, core = patches.mesh, patches.core_faces
         s_vertex = s_vertex if np.ndim(s_vertex) == 0 else np.asarray(s_vertex)[patches.vertices]
+    clock.append(time.perf_counter())
     ranked = _rank(search, core, mean_edge_length(noisy), candidates, paths, s_vertex, law["tangential"], draws,
                    blend_draws, blend_size, snapshots, a, key, antithetic, race_keep)
     components, risk, noisy_risk, table = ranked
+    clock.append(time.perf_counter())
     y = noisy.vertices
     auxes = {m: METHODS[m].prepare(noisy) for m in {c[0] for c in components}}
-    out = sum(w * _denoise(noisy, y, Candidate(m, p), auxes[m]) for m, p, w in components)
+    out = jax.block_until_ready(sum(w * _denoise(noisy, y, Candidate(m, p), auxes[m]) for m, p, w in components))
+    clock.append(time.perf_counter())
+    seconds = dict(zip(("noise_law", "patches", "ranking", "choice"), np.diff(clock).round(3).tolist()))
     method, params = (components[0][0], components[0][1]) if len(components) == 1 else ("blend", {})
     blind_caveats(noisy, law["sigma"], law["estimated"], risk / noisy_risk)
     return AutoResult(method, params, noisy.with_vertices(out), law["sigma"], law["estimated"], law["tangential"],
                       risk, noisy_risk, bool(risk < noisy_risk), table, components, law["law"], law["fraction"],
-                      search.num_vertices)
+                      search.num_vertices, seconds)
 
 
 def _tilts(noisy: Mesh, zs, candidates: Sequence[Candidate], auxes: dict, nu, ell, a) -> Iterator:

@@ -136,6 +136,9 @@ def test_denoise_auto_is_the_default_and_says_what_it_chose(capsys, tmp_path, sm
     assert s["method"] == want.method and s["params"] == want.params
     assert s["auto"]["improved"] and len(s["auto"]["candidates"]) == len(CANDIDATES) + sum(
         len(p.settings) for p in PATHS)
+    stages = s["auto"]["seconds"]
+    assert list(stages) == ["noise_law", "patches", "ranking", "choice"] and min(stages.values()) >= 0
+    assert sum(stages.values()) <= s["seconds"] + 1e-3 and stages == want.seconds
     assert s["after"]["normal_angle_deg"] < 0.5 * s["before"]["normal_angle_deg"]
     np.testing.assert_allclose(jaxmesh.load(out).vertices, want.mesh.vertices, atol=1e-12)
     assert main(["denoise", noisy, str(tmp_path / "x.ply"), "--lam", "0.3"]) == 1
