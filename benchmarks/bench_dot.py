@@ -49,8 +49,8 @@ def main() -> None:
         u = jax.random.normal(jax.random.PRNGKey(0), (2,) + mesh.vertices.shape, mesh.dtype)
         cases = {
             "edge tilt: u[faces] · ν_f": (lambda f: jax.jit(lambda u: f(u[..., faces, :], nu[None, :, None, :])), u),
-            "vertex update: offset · n_f": (lambda f: jax.jit(lambda x: f(x[faces] - jnp.mean(x[faces], axis=-2)[:, None, :],
-                                                                      nu[:, None, :])), mesh.vertices),
+            "vertex update: offset · n_f": (lambda f: jax.jit(
+                lambda x: f(x[faces] - jnp.mean(x[faces], axis=-2)[:, None, :], nu[:, None, :])), mesh.vertices),
         }
         for name, (build, arg) in cases.items():
             plain = ms(build(lambda a, b: jnp.sum(a * b, axis=-1)), arg)

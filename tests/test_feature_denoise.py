@@ -310,7 +310,8 @@ def test_a_path_estimates_what_the_candidate_loop_estimates(sphere, which):
 
     path = PATHS[which]
     noisy = jaxmesh.add_noise(sphere, 0.2, 5)
-    c = choose_denoiser(noisy, candidates=[], paths=(path,), key=3, blend_draws=0, race_keep=None)  # ranking alone
+    c = choose_denoiser(noisy, candidates=[], paths=(path,), key=3, blend_draws=0,
+                        race_keep=None)    # the ranking alone, every setting on every draw
     assert len(c.table) == len(path.settings) and {r[0] for r in c.table} == {path.method}
     method, params, risk = [r for r in c.table if r[1]["iterations"] < path.max_iterations][0]
     again = choose_denoiser(noisy, candidates=[Candidate(method, params)], paths=(), key=3, blend_draws=0)

@@ -19,13 +19,8 @@ along the pilot's vertex normals n_i as Σ_i = σ² n_i n_iᵀ + σ_t² (I − n
 at its defaults; its face and vertex normals are held fixed.  Every candidate
 sees the same draws (common random numbers).
 
-**Racing.**  Every setting (each fixed candidate, each setting of a path with its
-count) is first estimated on one draw; then only the ``RACE_KEEP`` best of each
-family (each method among the fixed candidates, each path) go on to the other
-draws, and the winner and the leaders are taken among those.  The draws are
-common to every candidate, so the first draw's order within a family is already
-close to the final one, and the others cost little (:data:`RACE_KEEP` = 2 of the
-family's settings instead of all of them).
+**Racing.**  The settings are raced over the draws (:mod:`jaxmesh.tune.race`): all on the
+first, the best ``RACE_KEEP`` of each family on the others.
 
 **The decision.**  The candidate with the least estimate wins, unless a convex
 blend of leaders (the best of each path and of each fixed method) is estimated
@@ -42,7 +37,6 @@ Measurements and the alternatives tried: the denoising guide.
 from __future__ import annotations
 
 import dataclasses
-import functools
 import itertools
 import time
 from collections.abc import Iterator, Sequence
@@ -61,13 +55,14 @@ from .impulsive import estimate_impulsive_noise, read_after_repair
 from .noise_level import blind_caveats, estimate_tangential_noise, noise_sigma
 from .paths import (BILATERAL_FEATURE_MAX_ITERATIONS, BILATERAL_FEATURE_SETTING, BILATERAL_PATH_FIXED,
                     BILATERAL_PATH_MAX_ITERATIONS, BILATERAL_PATH_SIGMAS, PATHS, TAUBIN_LAMS,
-                    TAUBIN_MAX_ITERATIONS, TAUBIN_PASS_BANDS, SearchPath, path_risks, taubin_mu)
+                    TAUBIN_MAX_ITERATIONS, TAUBIN_PASS_BANDS, SearchPath, taubin_mu)
 from .patches import PATCH_COUNT, PATCH_FACTOR, SEARCH_VERTICES, sample_patches
+from .race import RACE_KEEP, race, run_setting, setting_tilt
 from .recorrupt import edge_tilt, recorruptions
 
 __all__ = ["Candidate", "CANDIDATES", "IMPULSIVE_CANDIDATES", "RACE_KEEP", "SearchPath", "PATHS", "NOISE_MODELS",
-           "AutoResult", "edge_tilt", "choose_denoiser", "TAUBIN_LAMS", "TAUBIN_PASS_BANDS", "TAUBIN_MAX_ITERATIONS", "taubin_mu",
-           "BILATERAL_PATH_SIGMAS", "BILATERAL_PATH_FIXED", "BILATERAL_PATH_MAX_ITERATIONS",
+           "AutoResult", "edge_tilt", "choose_denoiser", "TAUBIN_LAMS", "TAUBIN_PASS_BANDS", "TAUBIN_MAX_ITERATIONS",
+           "taubin_mu", "BILATERAL_PATH_SIGMAS", "BILATERAL_PATH_FIXED", "BILATERAL_PATH_MAX_ITERATIONS",
            "BILATERAL_FEATURE_SETTING", "BILATERAL_FEATURE_MAX_ITERATIONS"]
 
 #: the noise laws of the recorruption (module docstring): impulsive detected, else Gaussian with σ_t estimated;
@@ -91,8 +86,6 @@ CANDIDATES: tuple[Candidate, ...] = tuple(
     _grid("bilateral_normal", sigma_r=(0.2, 0.35, 0.6), sigma_s=(1.0, 2.0))
     + _grid("guided_normal", sigma_r=(0.15, 0.3, 0.45), sigma_s=(1.0, 2.0))
 )
-#: after the first recorruption, the settings of each family that go on to the other draws (module docstring)
-RACE_KEEP = 2
 #: the candidates added when the noise is read as impulsive: impulse repair (L0 minimisation, the literature's
 #: answer, is left out: on the shared meshes it did not beat guided filtering and cost the most)
 IMPULSIVE_CANDIDATES: tuple[Candidate, ...] = tuple(_grid("impulse_repair", alpha=(0.3, 1.0)))
@@ -152,26 +145,6 @@ class AutoResult:
                 "improved": self.improved, "search_vertices": self.search_vertices, "seconds": self.seconds,
                 "components": [{"method": m, "params": p, "weight": w} for m, p, w in self.components],
                 "candidates": [{"method": m, "params": p, "risk": r} for m, p, r in self.table]}
-
-
-@functools.partial(jax.jit, static_argnames=("method", "statics"))
-def _run(mesh: Mesh, x, continuous: dict, aux: dict, method: str, statics: tuple):
-    from ..denoise import METHODS
-
-    return METHODS[method](mesh.with_vertices(x), **continuous, **dict(statics), **aux).vertices
-
-
-def _denoise(mesh: Mesh, x, candidate: Candidate, aux: dict):
-    from ..denoise import METHODS
-
-    cont, statics = METHODS[candidate.method].split(**candidate.params)
-    return _run(mesh, x, cont, aux, candidate.method, statics)
-
-
-@functools.partial(jax.jit, static_argnames=("method", "statics"))
-def _tilt(mesh: Mesh, noisy_input, target, nu, ell, continuous: dict, aux: dict, method: str, statics: tuple):
-    """T = A(f(ŷ) − ỹ) of one candidate on one recorruption, in one program."""
-    return edge_tilt(mesh, nu, ell, _run(mesh, noisy_input, continuous, aux, method, statics) - target)
 
 
 @jax.jit
@@ -284,7 +257,7 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
     clock.append(time.perf_counter())
     y = noisy.vertices
     auxes = {m: METHODS[m].prepare(noisy) for m in {c[0] for c in components}}
-    out = jax.block_until_ready(sum(w * _denoise(noisy, y, Candidate(m, p), auxes[m]) for m, p, w in components))
+    out = jax.block_until_ready(sum(w * run_setting(noisy, y, m, p, auxes[m]) for m, p, w in components))
     clock.append(time.perf_counter())
     seconds = dict(zip(("noise_law", "patches", "ranking", "choice"), np.diff(clock).round(3).tolist()))
     method, params = (components[0][0], components[0][1]) if len(components) == 1 else ("blend", {})
@@ -299,13 +272,10 @@ def _tilts(noisy: Mesh, zs, candidates: Sequence[Candidate], auxes: dict, nu, el
     one array (D, F, 3) per candidate, candidate by candidate.  One mesh per call: batching
     the draws or the settings into one call ran slower on CPU under the ``jaxmesh``
     command's XLA flags (:mod:`jaxmesh.compiler`) and compiled a program per batch size."""
-    from ..denoise import METHODS
-
     y = noisy.vertices
     pairs = list(zip(y[None] + a * zs, y[None] - zs / a))
     for c in candidates:
-        cont, statics = METHODS[c.method].split(**c.params)
-        yield jnp.stack([_tilt(noisy, x, t, nu, ell, cont, auxes[c.method], c.method, statics) for x, t in pairs])
+        yield jnp.stack([setting_tilt(noisy, x, t, nu, ell, c.method, c.params, auxes[c.method]) for x, t in pairs])
 
 
 def _rank(noisy: Mesh, core, ell, candidates, paths, s_vertex, s_t, draws, blend_draws, blend_size, snapshots, a,
@@ -317,7 +287,7 @@ def _rank(noisy: Mesh, core, ell, candidates, paths, s_vertex, s_t, draws, blend
     y = noisy.vertices
     methods = {c.method for c in candidates} | {"guided_normal"} | {path.method for path in paths}
     auxes = {m: METHODS[m].prepare(noisy) for m in methods}
-    pilot = noisy.with_vertices(_denoise(noisy, y, Candidate("guided_normal", {}), auxes["guided_normal"]))
+    pilot = noisy.with_vertices(run_setting(noisy, y, "guided_normal", {}, auxes["guided_normal"]))
     nu, n = _pilot_normals(pilot)
     per_face = 1.0
     if core is not None:    # faces outside the cores tilt by nothing: ν_f = 0
@@ -326,7 +296,7 @@ def _rank(noisy: Mesh, core, ell, candidates, paths, s_vertex, s_t, draws, blend
     zs, trace = recorruptions(noisy, nu, n, ell, s_vertex, s_t, draws, key, antithetic=antithetic)
     constant = (1 + 1 / a**2) * trace
 
-    table, leaders = _race(noisy, candidates, paths, y[None] + a * zs, y[None] - zs / a, nu, ell, auxes, constant,
+    table, leaders = race(noisy, candidates, paths, y[None] + a * zs, y[None] - zs / a, nu, ell, auxes, constant,
                            race_keep)
     components, risk = ((table[0][0], table[0][1], 1.0),), table[0][2]
     rows = leaders + snapshot_rows(leaders[len(leaders) - len(paths):], snapshots, leaders)
@@ -341,64 +311,6 @@ def _rank(noisy: Mesh, core, ell, candidates, paths, s_vertex, s_t, draws, blend
             risk = total / noisy.num_faces / blend_draws - constant
     table = [(m, p, r * per_face) for m, p, r in table]
     return components, risk * per_face, (1 + a**2) * trace * per_face, table
-
-
-@dataclasses.dataclass(frozen=True)
-class _Entry:
-    """One setting in the race: a fixed candidate, or one setting of a search path (its count searched)."""
-
-    family: tuple
-    candidate: Candidate
-    path: SearchPath | None = None
-
-
-def _entry_sums(noisy: Mesh, entry: _Entry, inputs, targets, nu, ell, auxes: dict) -> np.ndarray:
-    """Σ_d ‖A(f(ŷ_d) − ỹ_d)‖²/F over the draws given: (1,) for a fixed candidate, one per
-    iteration count for a path setting (:func:`~jaxmesh.tune.paths.path_risks`)."""
-    from ..denoise import METHODS
-
-    c = entry.candidate
-    if entry.path is not None:
-        return path_risks(noisy, entry.path, c.params, inputs, targets, nu, ell, auxes[c.method])
-    cont, statics = METHODS[c.method].split(**c.params)
-    total = sum(float(jnp.sum(_tilt(noisy, x, t, nu, ell, cont, auxes[c.method], c.method, statics) ** 2))
-                for x, t in zip(inputs, targets))
-    return np.array([total / noisy.num_faces])
-
-
-def _race(noisy: Mesh, candidates, paths, inputs, targets, nu, ell, auxes: dict, constant: float,
-          race_keep: int | None) -> tuple[list, list]:
-    """(table, leaders) of the ranking (module docstring, *Racing*): every setting on the first draw, then
-    the ``race_keep`` best of each family on the others (all of them on every draw when None).  The table
-    holds the settings raced to the end, best first, then those dropped after the first draw, best first
-    on that draw; the leaders are the best of each family among the first."""
-    entries = [_Entry(("fixed", c.method), c) for c in candidates]
-    entries += [_Entry(("path", i), Candidate(path.method, dict(setting)), path)
-                for i, path in enumerate(paths) for setting in path.settings]
-    draws = len(inputs)
-    first = draws if race_keep is None else 1
-    sums = [_entry_sums(noisy, e, inputs[:first], targets[:first], nu, ell, auxes) for e in entries]
-    families = list(dict.fromkeys(e.family for e in entries))
-    finished = list(range(len(entries)))
-    if first < draws:
-        finished = [i for family in families
-                    for i in sorted((i for i, e in enumerate(entries) if e.family == family),
-                                    key=lambda i: float(np.min(sums[i])))[:race_keep]]
-        for i in finished:
-            sums[i] = sums[i] + _entry_sums(noisy, entries[i], inputs[first:], targets[first:], nu, ell, auxes)
-
-    def row(i: int) -> tuple:
-        e, t = entries[i], int(np.argmin(sums[i]))
-        params = dict(e.candidate.params) if e.path is None else {**e.candidate.params, **dict(e.path.fixed),
-                                                                   "iterations": t + 1}
-        return e.candidate.method, params, float(sums[i][t]) / (draws if i in finished else first) - constant
-
-    rows = {i: row(i) for i in range(len(entries))}
-    leaders = [min((rows[i] for i in finished if entries[i].family == family), key=lambda r: r[2])
-               for family in families]
-    table = (sorted((rows[i] for i in finished), key=lambda r: r[2])
-             + sorted((rows[i] for i in rows if i not in finished), key=lambda r: r[2]))
-    return table, leaders
 
 
 def _noise_law(noisy: Mesh, sigma, noise_model: str) -> dict:

@@ -1,0 +1,152 @@
+"""Racing the blind chooser's settings over the recorruptions, and running one
+setting on them.
+
+Every setting (each fixed candidate, each setting of a search path with its
+iteration count searched, :mod:`jaxmesh.tune.paths`) is first estimated on one
+recorruption; then only the ``RACE_KEEP`` best of each *family* (each method
+among the fixed candidates, each path) go on to the other draws, and
+:func:`~jaxmesh.tune.choose_denoiser` takes its winner and its leaders among
+those.  The draws are common to every setting, so the first draw's order within
+a family is already close to the final one.  A setting's estimate is the
+recorrupted one of :mod:`jaxmesh.tune.recorrupt`: Σ_d ‖A(f(ŷ_d) − ỹ_d)‖²/F over
+the draws d, less the noise constant.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..mesh import Mesh
+from .paths import SearchPath, path_risks
+from .recorrupt import edge_tilt
+
+__all__ = ["RACE_KEEP", "race", "run_setting", "setting_tilt"]
+
+#: after the first recorruption, the settings of each family that go on to the other draws
+RACE_KEEP = 2
+
+
+@functools.partial(jax.jit, static_argnames=("method", "statics"))
+def _run(mesh: Mesh, x, continuous: dict, aux: dict, method: str, statics: tuple):
+    from ..denoise import METHODS
+
+    return METHODS[method](mesh.with_vertices(x), **continuous, **dict(statics), **aux).vertices
+
+
+def run_setting(mesh: Mesh, x, method: str, params: dict, aux: dict):
+    """f(x): the registry method ``method`` with ``params`` on positions ``x`` of ``mesh``, compiled
+    once per method and static parameters (the continuous ones are traced).
+
+    Arguments:
+        mesh: the mesh (single).
+        x: positions, (V, 3).
+        method: a registry name.
+        params: its parameters (the others at their defaults).
+        aux: its prepared arrays (``METHODS[method].prepare(mesh)``).
+
+    Returns:
+        The denoised positions, (V, 3)."""
+    from ..denoise import METHODS
+
+    cont, statics = METHODS[method].split(**params)
+    return _run(mesh, x, cont, aux, method, statics)
+
+
+@functools.partial(jax.jit, static_argnames=("method", "statics"))
+def _tilt(mesh: Mesh, noisy_input, target, nu, ell, continuous: dict, aux: dict, method: str, statics: tuple):
+    return edge_tilt(mesh, nu, ell, _run(mesh, noisy_input, continuous, aux, method, statics) - target)
+
+
+def setting_tilt(mesh: Mesh, noisy_input, target, nu, ell, method: str, params: dict, aux: dict):
+    """T = A(f(ŷ) − ỹ) of one setting on one recorruption (ŷ, ỹ), in one compiled program.
+
+    Arguments:
+        mesh: the mesh (single).
+        noisy_input: ŷ, (V, 3).
+        target: ỹ, (V, 3).
+        nu: the pilot's unit face normals, (F, 3).
+        ell: the mean edge length ℓ̄.
+        method: a registry name.
+        params: its parameters.
+        aux: its prepared arrays.
+
+    Returns:
+        (F, 3)."""
+    from ..denoise import METHODS
+
+    cont, statics = METHODS[method].split(**params)
+    return _tilt(mesh, noisy_input, target, nu, ell, cont, aux, method, statics)
+
+
+@dataclasses.dataclass(frozen=True)
+class _Entry:
+    """One setting in the race: a fixed candidate, or one setting of a search path (its count searched)."""
+
+    family: tuple
+    method: str
+    params: dict
+    path: SearchPath | None = None
+
+
+def _entry_sums(noisy: Mesh, entry: _Entry, inputs, targets, nu, ell, auxes: dict) -> np.ndarray:
+    """Σ_d ‖A(f(ŷ_d) − ỹ_d)‖²/F over the draws given: (1,) for a fixed candidate, one per
+    iteration count for a path setting (:func:`~jaxmesh.tune.paths.path_risks`)."""
+    aux = auxes[entry.method]
+    if entry.path is not None:
+        return path_risks(noisy, entry.path, entry.params, inputs, targets, nu, ell, aux)
+    total = sum(float(jnp.sum(setting_tilt(noisy, x, t, nu, ell, entry.method, entry.params, aux) ** 2))
+                for x, t in zip(inputs, targets))
+    return np.array([total / noisy.num_faces])
+
+
+def race(noisy: Mesh, candidates, paths, inputs, targets, nu, ell, auxes: dict, constant: float,
+         race_keep: int | None) -> tuple[list, list]:
+    """The ranking of :func:`~jaxmesh.tune.choose_denoiser` (module docstring).
+
+    Arguments:
+        noisy: the mesh ranked on (single; the whole mesh or its patches).
+        candidates: the fixed candidates (each with ``method`` and ``params``).
+        paths: the search paths.
+        inputs: the recorrupted inputs ŷ_d, (D, V, 3).
+        targets: the targets ỹ_d, (D, V, 3).
+        nu: the pilot's unit face normals, (F, 3) (zero rows: faces that do not count).
+        ell: the mean edge length ℓ̄.
+        auxes: each method's prepared arrays.
+        constant: the noise constant subtracted from every estimate.
+        race_keep: the settings of each family run on the draws after the first (None: all).
+
+    Returns:
+        (table, leaders): (method, params, estimate) rows, those raced to the end first, best
+        first, then those dropped after the first draw (estimated on it alone), best first;
+        and the best row of each family among the first, families in order."""
+    entries = [_Entry(("fixed", c.method), c.method, dict(c.params)) for c in candidates]
+    entries += [_Entry(("path", i), path.method, dict(setting), path)
+                for i, path in enumerate(paths) for setting in path.settings]
+    draws = len(inputs)
+    first = draws if race_keep is None else 1
+    sums = [_entry_sums(noisy, e, inputs[:first], targets[:first], nu, ell, auxes) for e in entries]
+    families = list(dict.fromkeys(e.family for e in entries))
+    finished = list(range(len(entries)))
+    if first < draws:
+        finished = [i for family in families
+                    for i in sorted((i for i, e in enumerate(entries) if e.family == family),
+                                    key=lambda i: float(np.min(sums[i])))[:race_keep]]
+        for i in finished:
+            sums[i] = sums[i] + _entry_sums(noisy, entries[i], inputs[first:], targets[first:], nu, ell, auxes)
+
+    def row(i: int) -> tuple:
+        e, t = entries[i], int(np.argmin(sums[i]))
+        params = dict(e.params) if e.path is None else {**e.params, **dict(e.path.fixed), "iterations": t + 1}
+        return e.method, params, float(sums[i][t]) / (draws if i in finished else first) - constant
+
+    rows = {i: row(i) for i in range(len(entries))}
+    leaders = [min((rows[i] for i in finished if entries[i].family == family), key=lambda r: r[2])
+               for family in families]
+    table = (sorted((rows[i] for i in finished), key=lambda r: r[2])
+             + sorted((rows[i] for i in rows if i not in finished), key=lambda r: r[2]))
+    return table, leaders
