@@ -15,7 +15,8 @@ independent (the library's default) or antithetic pairs.
 The whole-mesh results are saved to ``patch_search_whole.json``;
 ``--reuse-whole`` reads them from there instead of recomputing them (they do
 not depend on ``--draws`` or ``--search-vertices``).  Writes
-experiments/results/denoise/patch_search[_DRAWS].md.
+experiments/results/denoise/patch_search[_DRAWS][_svN].md (``_svN`` for a
+``--search-vertices`` other than the library's).
 """
 
 from __future__ import annotations
@@ -81,7 +82,8 @@ def main() -> None:
               f"within 1.02 in {sum(r <= 1.02 for r in ratios)} of {len(ratios)} cells."]
     RESULTS.mkdir(parents=True, exist_ok=True)
     saved.write_text(json.dumps(whole, indent=1))
-    suffix = "" if args.draws == "independent" else f"_{args.draws}"
+    suffix = (("" if args.draws == "independent" else f"_{args.draws}")
+              + ("" if args.search_vertices == SEARCH_VERTICES else f"_sv{args.search_vertices}"))
     (RESULTS / f"patch_search{suffix}.md").write_text("\n".join(lines) + "\n")
 
 
