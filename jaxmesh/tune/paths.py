@@ -1,5 +1,7 @@
 """The families :func:`~jaxmesh.tune.choose_denoiser` searches over their
-outer-iteration count, in one compiled scan per setting.
+outer-iteration count, one setting at a time in a compiled loop whose count is
+a traced bound (``PATH_CAPACITY_STEP``), so the paths of one method share a
+program.
 
 The recorrupted inputs are denoised one iteration at a time and the estimate
 (:mod:`jaxmesh.tune.recorrupt`) is read after every iteration, so every count
@@ -37,7 +39,7 @@ from .recorrupt import edge_tilt
 
 __all__ = ["SearchPath", "PATHS", "TAUBIN_LAMS", "TAUBIN_PASS_BANDS", "TAUBIN_MAX_ITERATIONS", "taubin_mu",
            "BILATERAL_PATH_SIGMAS", "BILATERAL_PATH_FIXED", "BILATERAL_PATH_MAX_ITERATIONS",
-           "BILATERAL_FEATURE_SETTING", "BILATERAL_FEATURE_MAX_ITERATIONS", "path_risks"]
+           "BILATERAL_FEATURE_SETTING", "BILATERAL_FEATURE_MAX_ITERATIONS", "PATH_CAPACITY_STEP", "path_risks"]
 
 #: the Taubin path's grid (module docstring): shrinking steps λ, pass bands k_PB, and every count up to the last
 TAUBIN_LAMS = (0.2, 0.35, 0.5, 0.7)
@@ -90,20 +92,27 @@ PATHS: tuple[SearchPath, ...] = (
 )
 
 
-@functools.partial(jax.jit, static_argnames=("method", "statics", "count"))
-def _path_risks(mesh: Mesh, inputs, targets, nu, ell, continuous: dict, aux: dict, method: str, statics: tuple,
-                count: int):
+#: a path's scan is compiled for its count rounded up to a multiple of this, and runs its own count
+#: (a traced bound): paths of one method whose counts round alike share one program
+PATH_CAPACITY_STEP = 32
+
+
+@functools.partial(jax.jit, static_argnames=("method", "statics", "capacity"))
+def _path_risks(mesh: Mesh, inputs, targets, nu, ell, continuous: dict, aux: dict, count, method: str,
+                statics: tuple, capacity: int):
     """Mean edge-tilt risk Σ‖A(x_t − target)‖²/F over the draws after every
-    iteration t = 1..count of one setting: shape (count,).  ``inputs``,
-    ``targets``: (D, V, 3)."""
+    iteration t = 1..count of one setting: shape (capacity,), +inf past ``count``.
+    ``inputs``, ``targets``: (D, V, 3)."""
     from ..denoise import METHODS
 
-    def step(x, _):
+    def step(t, state):
+        x, risks = state
         x = METHODS[method](mesh.with_vertices(x), **continuous, **dict(statics), iterations=1, **aux).vertices
         r = edge_tilt(mesh, nu, ell, x - targets)                                    # (D, F, 3)
-        return x, jnp.mean(jnp.sum(r * r, axis=(-2, -1))) / mesh.num_faces
+        return x, risks.at[t].set(jnp.mean(jnp.sum(r * r, axis=(-2, -1))) / mesh.num_faces)
 
-    return jax.lax.scan(step, inputs, None, length=count)[1]
+    risks = jnp.full((capacity,), jnp.inf, inputs.dtype)
+    return jax.lax.fori_loop(0, count, step, (inputs, risks))[1]
 
 
 def path_risks(mesh: Mesh, path: SearchPath, setting: dict, inputs, targets, nu, ell, aux: dict) -> np.ndarray:
@@ -126,5 +135,7 @@ def path_risks(mesh: Mesh, path: SearchPath, setting: dict, inputs, targets, nu,
 
     cont, statics = METHODS[path.method].split(**setting, **dict(path.fixed))
     statics = tuple(kv for kv in statics if kv[0] != "iterations")
-    risk = _path_risks(mesh, inputs, targets, nu, ell, cont, aux, path.method, statics, path.max_iterations)
-    return np.asarray(risk, np.float64) * len(inputs)
+    capacity = -(-path.max_iterations // PATH_CAPACITY_STEP) * PATH_CAPACITY_STEP
+    risk = _path_risks(mesh, inputs, targets, nu, ell, cont, aux, jnp.asarray(path.max_iterations, jnp.int32),
+                       path.method, statics, capacity)
+    return np.asarray(risk, np.float64)[:path.max_iterations] * len(inputs)
