@@ -297,7 +297,7 @@ def _rank(noisy: Mesh, core, ell, candidates, paths, s_vertex, s_t, draws, blend
     constant = (1 + 1 / a**2) * trace
 
     table, leaders = race(noisy, candidates, paths, y[None] + a * zs, y[None] - zs / a, nu, ell, auxes, constant,
-                           race_keep)
+                          race_keep)
     components, risk = ((table[0][0], table[0][1], 1.0),), table[0][2]
     rows = leaders + snapshot_rows(leaders[len(leaders) - len(paths):], snapshots, leaders)
     if blend_draws and blend_size > 1 and len(rows) > 1:
