@@ -71,6 +71,11 @@ MEAN_FIELD_STEPS = 5
 EM_STEPS = 300
 
 
+#: the host-side calls of the mixture fit, each one compiled program
+_posterior_jit = jax.jit(mixture_posterior)
+_scale_mixture = jax.jit(scale_mixture, static_argnames=("steps",))
+
+
 @dataclasses.dataclass(frozen=True)
 class ImpulsiveNoise:
     """The two-level noise law read from a mesh (module docstring).
@@ -142,9 +147,6 @@ def _posterior(z2, p, v0, v1) -> np.ndarray:
     """:func:`~jaxmesh.denoise.mixture_posterior` on host arrays (float64)."""
     return np.asarray(_posterior_jit(jnp.asarray(z2), p, jnp.asarray(v0), jnp.asarray(v1)), dtype=np.float64)
 
-
-_posterior_jit = jax.jit(mixture_posterior)
-_scale_mixture = jax.jit(scale_mixture, static_argnames=("steps",))
 
 
 def read_after_repair(mesh: Mesh, law: ImpulsiveNoise) -> ImpulsiveNoise:

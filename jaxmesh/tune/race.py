@@ -131,11 +131,11 @@ def race(noisy: Mesh, candidates, paths, inputs, targets, nu, ell, auxes: dict, 
     first = draws if race_keep is None else 1
     sums = [_entry_sums(noisy, e, inputs[:first], targets[:first], nu, ell, auxes) for e in entries]
     families = list(dict.fromkeys(e.family for e in entries))
-    finished = list(range(len(entries)))
+    finished = set(range(len(entries)))
     if first < draws:
-        finished = [i for family in families
+        finished = {i for family in families
                     for i in sorted((i for i, e in enumerate(entries) if e.family == family),
-                                    key=lambda i: float(np.min(sums[i])))[:race_keep]]
+                                    key=lambda i: float(np.min(sums[i])))[:race_keep]}
         for i in finished:
             sums[i] = sums[i] + _entry_sums(noisy, entries[i], inputs[first:], targets[first:], nu, ell, auxes)
 
