@@ -97,7 +97,7 @@ def det_adjugate_3x3(h: Float[Array, "... 3 3"]):
 
 
 #: stream tags of :func:`library_key`, one per use of randomness inside the library
-PROBE_STREAM, RECORRUPTION_STREAM, PATCH_STREAM = 1, 2, 3
+PROBE_STREAM, RECORRUPTION_STREAM, PATCH_STREAM, HELD_OUT_STREAM = 1, 2, 3, 4
 
 
 def library_key(key, stream: int):

@@ -6,11 +6,16 @@ recorrupted estimate of its normal error (:mod:`jaxmesh.tune.recorrupt`),
 which needs no derivative of the denoiser.
 
 **The noise law.**  With ``noise_model="auto"`` the mesh is first read for
-impulsive noise (:func:`~jaxmesh.tune.estimate_impulsive_noise`): when found,
-the recorruption draws each vertex's normal noise at its own level s_i (the
-two-level law with the posteriors of
-:func:`~jaxmesh.tune.impulsive.read_after_repair`, none within the surface)
-and ``IMPULSIVE_CANDIDATES`` (impulse repair) join the search.  Otherwise the noise is
+impulsive noise (:func:`~jaxmesh.tune.estimate_impulsive_noise`).  When found,
+``IMPULSIVE_CANDIDATES`` (impulse repair) join the search and the candidates
+are ranked by the held-out estimate (:mod:`jaxmesh.tune.heldout`): the
+vertices read as untouched are the clean surface, so each draw displaces some
+of them at the law read (p̂, σ̂₁) and the error is measured on the faces whose
+three vertices were untouched.  Where fewer than ``HELD_OUT_MIN_FACES`` faces
+qualify (noise forced impulsive on a mesh that is not), the recorruption draws
+each vertex's normal noise at its own level s_i instead (the two-level law
+with the posteriors of :func:`~jaxmesh.tune.impulsive.read_after_repair`, none
+within the surface).  Otherwise the noise is
 Gaussian: σ from :func:`~jaxmesh.tune.estimate_noise` unless given, split
 along the pilot's vertex normals n_i as Σ_i = σ² n_i n_iᵀ + σ_t² (I − n_i n_iᵀ),
 σ_t the noise within the surface: the mesh's own reading
@@ -51,6 +56,8 @@ from ..geometry import face_normals, mean_edge_length, vertex_normals
 from ..mesh import Mesh
 from .blend import (BLEND_DRAWS, BLEND_SALT, BLEND_SIZE, SNAPSHOT_FACTORS, best_mixture, check_snapshots,
                     snapshot_rows, tilt_gram)
+from .heldout import (HELD_OUT_MIN_FACES, feature_faces, held_out_inputs, held_out_split, measured_faces,
+                      stratum_weights)
 from .impulsive import estimate_impulsive_noise, read_after_repair
 from .noise_level import blind_caveats, estimate_tangential_noise, noise_sigma
 from .paths import (BILATERAL_FEATURE_MAX_ITERATIONS, BILATERAL_FEATURE_SETTING, BILATERAL_PATH_FIXED,
@@ -88,7 +95,7 @@ CANDIDATES: tuple[Candidate, ...] = tuple(
 )
 #: the candidates added when the noise is read as impulsive: impulse repair (L0 minimisation, the literature's
 #: answer, is left out: on the shared meshes it did not beat guided filtering and cost the most)
-IMPULSIVE_CANDIDATES: tuple[Candidate, ...] = tuple(_grid("impulse_repair", alpha=(0.3, 1.0)))
+IMPULSIVE_CANDIDATES: tuple[Candidate, ...] = tuple(_grid("impulse_repair", alpha=(0.1, 0.3, 1.0), iterations=(5, 10)))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -104,8 +111,8 @@ class AutoResult:
       σ_t within the surface of the recorruption; ``noise_law``: ``"gaussian"`` or
       ``"impulsive"``, and ``fraction``: the share p̂ of displaced vertices (1 for Gaussian);
     * ``risk``: the winner's estimated mean squared edge tilt (radians²) at the
-      recorrupted noise level (a blend's on its own draws), ``noisy_risk`` doing nothing's, and
-      ``improved = risk < noisy_risk``;
+      recorrupted noise level, or, under impulsive noise, on the held-out draws (a blend's on its
+      own draws), ``noisy_risk`` doing nothing's, and ``improved = risk < noisy_risk``;
     * ``table``: every candidate with its estimate, best first;
     * ``search_vertices``: the vertices of the mesh the candidates were ranked on (the
       whole mesh's, or its patches', :mod:`jaxmesh.tune.patches`);
@@ -165,7 +172,8 @@ def _check(noisy: Mesh, candidates: Sequence[Candidate], paths: Sequence[SearchP
     if not candidates and not paths:
         raise ValueError("candidates: give at least one (method, params) pair, or a path to search")
     for path in paths:
-        if not isinstance(path, SearchPath) or path.method not in METHODS or "iterations" not in METHODS[path.method].params:
+        if (not isinstance(path, SearchPath) or path.method not in METHODS
+                or "iterations" not in METHODS[path.method].params):
             raise ValueError(f"paths: each must be a SearchPath of a registered method with an 'iterations' "
                              f"parameter, got {path!r}")
         if isinstance(path.max_iterations, bool) or not isinstance(path.max_iterations, int) or path.max_iterations < 1:
@@ -251,8 +259,9 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
         search, core = patches.mesh, patches.core_faces
         s_vertex = s_vertex if np.ndim(s_vertex) == 0 else np.asarray(s_vertex)[patches.vertices]
     clock.append(time.perf_counter())
+    impulsive = (law["fraction"], law["sigma"]) if law["law"] == "impulsive" else None
     ranked = _rank(search, core, mean_edge_length(noisy), candidates, paths, s_vertex, law["tangential"], draws,
-                   blend_draws, blend_size, snapshots, a, key, antithetic, race_keep)
+                   blend_draws, blend_size, snapshots, a, key, antithetic, race_keep, impulsive)
     components, risk, noisy_risk, table = ranked
     clock.append(time.perf_counter())
     y = noisy.vertices
@@ -267,50 +276,79 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
                       search.num_vertices, seconds)
 
 
-def _tilts(noisy: Mesh, zs, candidates: Sequence[Candidate], auxes: dict, nu, ell, a) -> Iterator:
-    """T = A(f(ŷ_d) − ỹ_d) of every candidate f on every recorruption z_d (ŷ = y + a z, ỹ = y − z/a),
-    one array (D, F, 3) per candidate, candidate by candidate.  One mesh per call: batching
-    the draws or the settings into one call ran slower on CPU under the ``jaxmesh``
-    command's XLA flags (:mod:`jaxmesh.compiler`) and compiled a program per batch size."""
-    y = noisy.vertices
-    pairs = list(zip(y[None] + a * zs, y[None] - zs / a))
+def _tilts(noisy: Mesh, inputs, targets, candidates: Sequence[Candidate], auxes: dict, nu, ell) -> Iterator:
+    """T = A(f(ŷ_d) − ỹ_d) of every candidate f on every draw (ŷ_d, ỹ_d), one array (D, F, 3) per
+    candidate, candidate by candidate.  One mesh per call: batching the draws or the settings into
+    one call ran slower on CPU under the ``jaxmesh`` command's XLA flags (:mod:`jaxmesh.compiler`)
+    and compiled a program per batch size."""
     for c in candidates:
-        yield jnp.stack([setting_tilt(noisy, x, t, nu, ell, c.method, c.params, auxes[c.method]) for x, t in pairs])
+        yield jnp.stack([setting_tilt(noisy, x, t, nu, ell, c.method, c.params, auxes[c.method])
+                         for x, t in zip(inputs, targets)])
+
+
+def _held_out(noisy: Mesh, pilot: Mesh, n, ell, core, auxes: dict, impulsive: tuple, key):
+    """The held-out estimate's face normals (zero off the measured faces), its draws and the
+    measured faces' count (:mod:`jaxmesh.tune.heldout`), or None where too few faces are measured."""
+    y = noisy.vertices
+    repaired = run_setting(noisy, y, "impulse_repair", {}, auxes["impulse_repair"])
+    untouched, displaced = held_out_split(noisy, (noisy.with_vertices(repaired), pilot), float(ell))
+    measured = measured_faces(noisy, untouched) & core
+    if measured.sum() < HELD_OUT_MIN_FACES:
+        return None
+    weights = stratum_weights(feature_faces(noisy, face_normals(pilot)), measured, core)
+    nu = face_normals(noisy) * jnp.asarray(np.sqrt(weights), noisy.dtype)[:, None]     # ‖A_f‖² weighted by w_f
+    fraction, sigma = impulsive
+
+    def draw(count: int, salt: int = 0):
+        inputs = held_out_inputs(noisy, untouched, displaced, repaired, n, sigma, fraction, count, key, salt)
+        return inputs, jnp.broadcast_to(y, inputs.shape)
+    return nu, draw, int(measured.sum())
 
 
 def _rank(noisy: Mesh, core, ell, candidates, paths, s_vertex, s_t, draws, blend_draws, blend_size, snapshots, a,
-          key, antithetic=False, race_keep=None) -> tuple:
+          key, antithetic=False, race_keep=None, impulsive=None) -> tuple:
     """The search of :func:`choose_denoiser` on ``noisy`` (the whole mesh or its patches, where only the
-    faces of ``core`` count): (components, risk, doing nothing's risk, table), risks per counted face."""
+    faces of ``core`` count): (components, risk, doing nothing's risk, table), risks per counted face.
+    ``impulsive``: (p̂, σ̂₁) to rank by the held-out estimate where it measures enough faces."""
     from ..denoise import METHODS
 
     y = noisy.vertices
-    methods = {c.method for c in candidates} | {"guided_normal"} | {path.method for path in paths}
+    methods = ({c.method for c in candidates} | {"guided_normal"} | {path.method for path in paths}
+               | ({"impulse_repair"} if impulsive else set()))
     auxes = {m: METHODS[m].prepare(noisy) for m in methods}
     pilot = noisy.with_vertices(run_setting(noisy, y, "guided_normal", {}, auxes["guided_normal"]))
     nu, n = _pilot_normals(pilot)
-    per_face = 1.0
-    if core is not None:    # faces outside the cores tilt by nothing: ν_f = 0
-        nu = nu * jnp.asarray(core, nu.dtype)[:, None]
-        per_face = noisy.num_faces / max(int(np.sum(core)), 1)
-    zs, trace = recorruptions(noisy, nu, n, ell, s_vertex, s_t, draws, key, antithetic=antithetic)
-    constant = (1 + 1 / a**2) * trace
+    counted = np.ones(noisy.num_faces, bool) if core is None else np.asarray(core, bool)
+    held = _held_out(noisy, pilot, n, ell, counted, auxes, impulsive, key) if impulsive else None
+    if held is not None:
+        nu, draw, count = held
+        inputs, targets = draw(draws)
+        constant, per_face = 0.0, noisy.num_faces / count
+        nothing = float(jnp.sum(edge_tilt(noisy, nu, ell, inputs - targets) ** 2)) / draws / noisy.num_faces
+    else:
+        if core is not None:    # faces outside the cores tilt by nothing: ν_f = 0
+            nu = nu * jnp.asarray(counted, nu.dtype)[:, None]
+        per_face = noisy.num_faces / max(int(counted.sum()), 1)
 
-    table, leaders = race(noisy, candidates, paths, y[None] + a * zs, y[None] - zs / a, nu, ell, auxes, constant,
-                          race_keep)
+        def draw(count: int, salt: int = 0):
+            zs = recorruptions(noisy, nu, n, ell, s_vertex, s_t, count, key, salt=salt, antithetic=antithetic)
+            return y[None] + a * zs[0], y[None] - zs[0] / a, zs[1]
+        inputs, targets, trace = draw(draws)
+        constant, nothing = (1 + 1 / a**2) * trace, (1 + a**2) * trace
+
+    table, leaders = race(noisy, candidates, paths, inputs, targets, nu, ell, auxes, constant, race_keep)
     components, risk = ((table[0][0], table[0][1], 1.0),), table[0][2]
     rows = leaders + snapshot_rows(leaders[len(leaders) - len(paths):], snapshots, leaders)
     if blend_draws and blend_size > 1 and len(rows) > 1:
-        fresh = recorruptions(noisy, nu, n, ell, s_vertex, s_t, blend_draws, key, salt=BLEND_SALT,
-                              antithetic=antithetic)[0]
-        gram = tilt_gram(np.stack([np.asarray(t) for t in _tilts(noisy, fresh, [Candidate(*r[:2]) for r in rows],
-                                                                   auxes, nu, ell, a)]))
+        fresh = draw(blend_draws, BLEND_SALT)
+        gram = tilt_gram(np.stack([np.asarray(t) for t in _tilts(noisy, *fresh[:2], [Candidate(*r[:2]) for r in rows],
+                                                                   auxes, nu, ell)]))
         mix, total = best_mixture(gram, next(i for i, r in enumerate(rows) if r is table[0]), blend_size)
         if len(mix) > 1:
             components = tuple((rows[i][0], rows[i][1], w) for i, w in mix)
             risk = total / noisy.num_faces / blend_draws - constant
     table = [(m, p, r * per_face) for m, p, r in table]
-    return components, risk * per_face, (1 + a**2) * trace * per_face, table
+    return components, risk * per_face, nothing * per_face, table
 
 
 def _noise_law(noisy: Mesh, sigma, noise_model: str) -> dict:
