@@ -114,7 +114,14 @@ def held_out_split(noisy: Mesh, fits: Sequence[Mesh], ell: float,
 
 
 def measured_faces(noisy: Mesh, untouched: np.ndarray) -> np.ndarray:
-    """The faces whose three vertices are read as untouched, (F,) bool."""
+    """The faces whose three vertices are read as untouched.
+
+    Arguments:
+        noisy: the mesh (single).
+        untouched: (V,) bool, the vertices read as untouched.
+
+    Returns:
+        (F,) bool."""
     return np.asarray(untouched)[np.asarray(noisy.faces)].all(axis=1)
 
 
