@@ -324,6 +324,45 @@ def test_a_path_estimates_what_the_candidate_loop_estimates(sphere, which):
                                atol=1e-12)
 
 
+def _stop_count(risks, factor, patience):
+    """The early stop's rule as a plain loop: after iteration t (0-based), stop once t + 1 > best +
+    patience and the risk of t exceeds factor × the least so far."""
+    best = 0
+    for t in range(len(risks)):
+        best = t if risks[t] < risks[best] else best
+        if t + 1 > best + patience and risks[t] > factor * risks[best]:
+            return t + 1
+    return len(risks)
+
+
+def test_a_path_stops_once_its_risk_has_risen():
+    """Stopped, a path's risks are the full curve's up to the count the rule gives (+inf after), so
+    the least count is the full curve's; a tight rule stops Taubin's 100 counts early on a noisy
+    box (Taubin rounds its creases)."""
+    from jaxmesh.geometry import face_normals, mean_edge_length, vertex_normals
+    from jaxmesh.tune.paths import PATH_STOP_FACTOR, PATH_STOP_PATIENCE, PATHS, path_risks
+    from jaxmesh.tune.recorrupt import recorruptions
+
+    b = trimesh.creation.box().subdivide().subdivide().subdivide()
+    clean = jaxmesh.Mesh.from_arrays(b.vertices, b.faces).astype(jnp.float64)
+    noisy = jaxmesh.add_noise(clean, 0.2, 5, along_normals=True)
+    ell = mean_edge_length(noisy)
+    nu, n = face_normals(noisy), vertex_normals(noisy, "area")
+    zs, _ = recorruptions(noisy, nu, n, ell, 0.2 * float(ell), 0.0, 2, 1)
+    inputs, targets = noisy.vertices[None] + 0.5 * zs, noisy.vertices[None] - zs / 0.5
+    path = PATHS[0]
+    aux = METHODS[path.method].prepare(noisy)
+    for setting in path.settings[4::3]:                 # λ ≥ 0.35: the curve turns within 100 counts
+        full = path_risks(noisy, path, setting, inputs, targets, nu, ell, aux, stop=None)
+        assert np.isfinite(full).all() and len(full) == path.max_iterations
+        for rule in ((PATH_STOP_FACTOR, PATH_STOP_PATIENCE), (1.01, 2)):
+            stopped = path_risks(noisy, path, setting, inputs, targets, nu, ell, aux, stop=rule)
+            k = _stop_count(full, *rule)
+            np.testing.assert_allclose(stopped[:k], full[:k], rtol=1e-12)
+            assert np.all(np.isinf(stopped[k:])) and np.argmin(stopped) == np.argmin(full)
+            assert k < path.max_iterations or rule[0] > 1.01
+
+
 def test_racing_finishes_the_best_of_each_family_on_every_draw(sphere):
     """After the first draw only the race_keep best settings of each family go on: their
     estimates are those of the unraced search, they come first in the table, and keeping
