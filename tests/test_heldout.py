@@ -120,7 +120,7 @@ def test_the_chooser_ranks_impulsive_noise_by_the_held_out_estimate(ball):
     taubin = Candidate("taubin", {"iterations": 5})
     c = choose_denoiser(noisy, candidates=[taubin], impulsive_candidates=(), paths=(), blend_draws=0, draws=2,
                         race_keep=None, key=4)
-    assert c.noise_law == "impulsive"
+    assert c.noise_law == "impulsive" and c.estimator == "held_out" and c.summary()["estimator"] == "held_out"
     ell = float(mean_edge_length(noisy))
     pilot = METHODS["guided_normal"](noisy)
     repaired = METHODS["impulse_repair"](noisy)
@@ -146,3 +146,17 @@ def test_the_held_out_estimate_orders_impulse_repair_as_the_clean_mesh_does(ball
     c = choose_denoiser(noisy, candidates=settings, impulsive_candidates=(), paths=(), blend_draws=0)
     true = [float(mean_normal_angle_error(ball, METHODS["impulse_repair"](noisy, **s.params))) for s in settings]
     assert c.params == settings[int(np.argmin(true))].params and min(true) < 0.8 * max(true)
+
+
+def test_too_few_untouched_faces_fall_back_to_the_recorrupted_estimate(ball, monkeypatch):
+    """Where fewer than HELD_OUT_MIN_FACES faces can be scored (here: the threshold raised past the
+    mesh's faces), the per-vertex recorruption ranks, with its noise constant."""
+    import jaxmesh.tune.auto as auto
+
+    noisy = jaxmesh.add_impulsive_noise(ball, 0.5, 3, fraction=0.5)
+    kw = dict(candidates=[Candidate("taubin", {"iterations": 5})], impulsive_candidates=(), paths=(), blend_draws=0)
+    held = choose_denoiser(noisy, **kw)
+    monkeypatch.setattr(auto, "HELD_OUT_MIN_FACES", ball.num_faces + 1)
+    c = choose_denoiser(noisy, **kw)
+    assert held.estimator == "held_out" and c.noise_law == "impulsive" and c.estimator == "recorrupted"
+    assert c.table[0][2] != held.table[0][2]

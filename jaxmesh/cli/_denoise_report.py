@@ -70,8 +70,12 @@ def report_auto(args, label, out, mesh, reference, choice, caveats, seconds) -> 
               "(--search-vertices all: on the whole mesh)")
     if choice.noise_law == "impulsive":
         print(f"  impulsive noise: {choice.fraction:.0%} of the vertices displaced along their normals, sigma "
-              f"{choice.sigma:.4g} ({'estimated' if choice.estimated else 'given'}); recorrupted estimate under "
-              f"that law {choice.risk:.3g} vs {choice.noisy_risk:.3g} for the input (a ranking: its level is biased)")
+              f"{choice.sigma:.4g} ({'estimated' if choice.estimated else 'given'}); "
+              + (f"estimated RMS normal error {choice.rms_tilt_degrees:.2f}° vs "
+                 f"{summary['auto']['noisy_rms_normal_error_deg']:.2f}° for the input (held-out estimate on the "
+                 "vertices read as untouched)" if choice.estimator == "held_out" else
+                 f"recorrupted estimate under that law {choice.risk:.3g} vs {choice.noisy_risk:.3g} for the input "
+                 "(a ranking: its level is biased)"))
     else:
         model = {"auto": "estimated", "normal": "noise along the normals", "isotropic": "isotropic noise"}[
             args.noise_model or "auto"]

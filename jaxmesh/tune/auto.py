@@ -30,7 +30,8 @@ first, the best ``RACE_KEEP`` of each family on the others.
 **The decision.**  The candidate with the least estimate wins, unless a convex
 blend of leaders (the best of each path and of each fixed method) is estimated
 better on fresh draws (:mod:`jaxmesh.tune.blend`).  It is compared with doing
-nothing, whose error at the same noise level is (1 + a²) tr(AᵀAΣ): if the
+nothing, whose error at the same noise level is (1 + a²) tr(AᵀAΣ) (held out: the
+tilt of the draws' inputs themselves): if the
 choice does not beat it, ``improved`` is False and the caller must say so.
 **Large meshes.**  On a mesh of more than ``PATCH_FACTOR × search_vertices``
 vertices the candidates are ranked on patches of it, a stratified sample of the
@@ -116,6 +117,8 @@ class AutoResult:
     * ``table``: every candidate with its estimate, best first;
     * ``search_vertices``: the vertices of the mesh the candidates were ranked on (the
       whole mesh's, or its patches', :mod:`jaxmesh.tune.patches`);
+    * ``estimator``: ``"recorrupted"`` (:mod:`jaxmesh.tune.recorrupt`) or ``"held_out"``
+      (impulsive noise, :mod:`jaxmesh.tune.heldout`), the estimate that ranked the candidates;
     * ``seconds``: wall seconds of each stage: ``"noise_law"`` (read on the whole mesh),
       ``"patches"`` (sampling them; 0 on the whole mesh), ``"ranking"`` (the race and the
       blend's draws) and ``"choice"`` (the choice run on the whole mesh).
@@ -136,6 +139,7 @@ class AutoResult:
     fraction: float = 1.0
     search_vertices: int = 0
     seconds: dict = dataclasses.field(default_factory=dict)
+    estimator: str = "recorrupted"
 
     @property
     def rms_tilt_degrees(self) -> float:
@@ -150,6 +154,7 @@ class AutoResult:
                 "estimated_rms_normal_error_deg": self.rms_tilt_degrees,
                 "noisy_rms_normal_error_deg": float(np.degrees(np.sqrt(max(self.noisy_risk, 0.0)))),
                 "improved": self.improved, "search_vertices": self.search_vertices, "seconds": self.seconds,
+                "estimator": self.estimator,
                 "components": [{"method": m, "params": p, "weight": w} for m, p, w in self.components],
                 "candidates": [{"method": m, "params": p, "risk": r} for m, p, r in self.table]}
 
@@ -262,7 +267,7 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
     impulsive = (law["fraction"], law["sigma"]) if law["law"] == "impulsive" else None
     ranked = _rank(search, core, mean_edge_length(noisy), candidates, paths, s_vertex, law["tangential"], draws,
                    blend_draws, blend_size, snapshots, a, key, antithetic, race_keep, impulsive)
-    components, risk, noisy_risk, table = ranked
+    components, risk, noisy_risk, table, estimator = ranked
     clock.append(time.perf_counter())
     y = noisy.vertices
     auxes = {m: METHODS[m].prepare(noisy) for m in {c[0] for c in components}}
@@ -273,7 +278,7 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
     blind_caveats(noisy, law["sigma"], law["estimated"], risk / noisy_risk)
     return AutoResult(method, params, noisy.with_vertices(out), law["sigma"], law["estimated"], law["tangential"],
                       risk, noisy_risk, bool(risk < noisy_risk), table, components, law["law"], law["fraction"],
-                      search.num_vertices, seconds)
+                      search.num_vertices, seconds, estimator)
 
 
 def _tilts(noisy: Mesh, inputs, targets, candidates: Sequence[Candidate], auxes: dict, nu, ell) -> Iterator:
@@ -348,7 +353,7 @@ def _rank(noisy: Mesh, core, ell, candidates, paths, s_vertex, s_t, draws, blend
             components = tuple((rows[i][0], rows[i][1], w) for i, w in mix)
             risk = total / noisy.num_faces / blend_draws - constant
     table = [(m, p, r * per_face) for m, p, r in table]
-    return components, risk * per_face, nothing * per_face, table
+    return components, risk * per_face, nothing * per_face, table, "recorrupted" if held is None else "held_out"
 
 
 def _noise_law(noisy: Mesh, sigma, noise_model: str) -> dict:
