@@ -103,6 +103,9 @@ def table(rows: list[dict]) -> str:
                      f"{vs_taubin:.2f} |")
     lines += ["", f"- worst auto / best oracle: {worst_best:.2f} (target ≤ 1.25); worst auto / oracle Taubin: "
                   f"{worst_taubin:.2f} (target ≤ 0.5); {len(rows)} cells"]
+    if any(m not in r["oracle"] for r in rows for m in ORACLE):
+        lines.append("- –: that oracle was not run for the cell (`--oracles`, to save time on the larger meshes); "
+                     "its best oracle is the best of the columns shown")
     return "\n".join(lines) + "\n"
 
 
