@@ -324,6 +324,24 @@ def test_a_path_estimates_what_the_candidate_loop_estimates(sphere, which):
                                atol=1e-12)
 
 
+@pytest.mark.parametrize("method, params", [("taubin", {"lam": 0.5, "mu": -0.53, "iterations": 7}),
+                                            ("bilateral_normal", {"normal_iterations": 1, "vertex_iterations": 5,
+                                                                  "iterations": 4})])
+def test_a_counted_run_is_the_method_itself(sphere, method, params):
+    """run_setting(counted=True), the iterations a traced count of single iterations, gives the
+    method's own output, and one program serves every count."""
+    from jaxmesh.tune.race import _run, run_setting
+
+    noisy = jaxmesh.add_noise(sphere, 0.2, 5).astype(jnp.float64)
+    aux = METHODS[method].prepare(noisy)
+    want = METHODS[method](noisy, **params).vertices
+    np.testing.assert_allclose(run_setting(noisy, noisy.vertices, method, params, aux, counted=True), want,
+                               atol=1e-12)
+    before = _run._cache_size()
+    run_setting(noisy, noisy.vertices, method, {**params, "iterations": params["iterations"] + 3}, aux, counted=True)
+    assert _run._cache_size() == before
+
+
 def _stop_count(risks, factor, patience):
     """The early stop's rule as a plain loop: after iteration t (0-based), stop once t + 1 > best +
     patience and the risk of t exceeds factor × the least so far."""

@@ -271,7 +271,9 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
     clock.append(time.perf_counter())
     y = noisy.vertices
     auxes = {m: METHODS[m].prepare(noisy) for m in {c[0] for c in components}}
-    out = jax.block_until_ready(sum(w * run_setting(noisy, y, m, p, auxes[m]) for m, p, w in components))
+    counted = {path.method for path in paths}
+    out = jax.block_until_ready(sum(w * run_setting(noisy, y, m, p, auxes[m], m in counted)
+                                    for m, p, w in components))
     clock.append(time.perf_counter())
     seconds = dict(zip(("noise_law", "patches", "ranking", "choice"), np.diff(clock).round(3).tolist()))
     method, params = (components[0][0], components[0][1]) if len(components) == 1 else ("blend", {})
@@ -281,13 +283,14 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
                       search.num_vertices, seconds, estimator)
 
 
-def _tilts(noisy: Mesh, inputs, targets, candidates: Sequence[Candidate], auxes: dict, nu, ell) -> Iterator:
+def _tilts(noisy: Mesh, inputs, targets, candidates: Sequence[Candidate], auxes: dict, nu, ell,
+           counted=frozenset()) -> Iterator:
     """T = A(f(ŷ_d) − ỹ_d) of every candidate f on every draw (ŷ_d, ỹ_d), one array (D, F, 3) per
-    candidate, candidate by candidate.  One mesh per call: batching the draws or the settings into
-    one call ran slower on CPU under the ``jaxmesh`` command's XLA flags (:mod:`jaxmesh.compiler`)
-    and compiled a program per batch size."""
+    candidate, candidate by candidate (the methods in ``counted`` with their count traced).  One
+    mesh per call: batching the draws or the settings into one call ran slower on CPU under the
+    ``jaxmesh`` command's XLA flags (:mod:`jaxmesh.compiler`) and compiled a program per batch size."""
     for c in candidates:
-        yield jnp.stack([setting_tilt(noisy, x, t, nu, ell, c.method, c.params, auxes[c.method])
+        yield jnp.stack([setting_tilt(noisy, x, t, nu, ell, c.method, c.params, auxes[c.method], c.method in counted)
                          for x, t in zip(inputs, targets)])
 
 
@@ -346,8 +349,9 @@ def _rank(noisy: Mesh, core, ell, candidates, paths, s_vertex, s_t, draws, blend
     rows = leaders + snapshot_rows(leaders[len(leaders) - len(paths):], snapshots, leaders)
     if blend_draws and blend_size > 1 and len(rows) > 1:
         fresh = draw(blend_draws, BLEND_SALT)
-        gram = tilt_gram(np.stack([np.asarray(t) for t in _tilts(noisy, *fresh[:2], [Candidate(*r[:2]) for r in rows],
-                                                                   auxes, nu, ell)]))
+        blended = [Candidate(*r[:2]) for r in rows]
+        counted = {path.method for path in paths}
+        gram = tilt_gram(np.stack([np.asarray(t) for t in _tilts(noisy, *fresh[:2], blended, auxes, nu, ell, counted)]))
         mix, total = best_mixture(gram, next(i for i, r in enumerate(rows) if r is table[0]), blend_size)
         if len(mix) > 1:
             components = tuple((rows[i][0], rows[i][1], w) for i, w in mix)

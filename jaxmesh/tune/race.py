@@ -31,14 +31,37 @@ __all__ = ["RACE_KEEP", "race", "run_setting", "setting_tilt"]
 RACE_KEEP = 2
 
 
-@functools.partial(jax.jit, static_argnames=("method", "statics"))
-def _run(mesh: Mesh, x, continuous: dict, aux: dict, method: str, statics: tuple):
+def _apply(mesh: Mesh, x, continuous: dict, aux: dict, count, method: str, statics: tuple):
+    """f(x), or, with a traced ``count``, ``count`` single iterations of f in a loop (one program for
+    every count: the search paths' methods, :class:`~jaxmesh.tune.SearchPath`)."""
     from ..denoise import METHODS
 
-    return METHODS[method](mesh.with_vertices(x), **continuous, **dict(statics), **aux).vertices
+    def once(x, **more):
+        return METHODS[method](mesh.with_vertices(x), **continuous, **dict(statics), **more, **aux).vertices
+
+    if count is None:
+        return once(x)
+    return jax.lax.fori_loop(0, count, lambda _, x: once(x, iterations=1), x)
 
 
-def run_setting(mesh: Mesh, x, method: str, params: dict, aux: dict):
+@functools.partial(jax.jit, static_argnames=("method", "statics"))
+def _run(mesh: Mesh, x, continuous: dict, aux: dict, count, method: str, statics: tuple):
+    return _apply(mesh, x, continuous, aux, count, method, statics)
+
+
+def _split(method: str, params: dict, counted: bool) -> tuple:
+    """(continuous, statics, count): the traced and static arguments of one compiled call; with
+    ``counted``, the iteration count taken out of the statics and traced (None otherwise)."""
+    from ..denoise import METHODS
+
+    cont, statics = METHODS[method].split(**params)
+    if not counted:
+        return cont, statics, None
+    count = dict(statics)["iterations"]
+    return cont, tuple(kv for kv in statics if kv[0] != "iterations"), jnp.asarray(count, jnp.int32)
+
+
+def run_setting(mesh: Mesh, x, method: str, params: dict, aux: dict, counted: bool = False):
     """f(x): the registry method ``method`` with ``params`` on positions ``x`` of ``mesh``, compiled
     once per method and static parameters (the continuous ones are traced).
 
@@ -48,21 +71,22 @@ def run_setting(mesh: Mesh, x, method: str, params: dict, aux: dict):
         method: a registry name.
         params: its parameters (the others at their defaults).
         aux: its prepared arrays (``METHODS[method].prepare(mesh)``).
+        counted: run the ``iterations`` as a traced count of single iterations (one program for
+            every count; only for methods whose iterations compose, those of the search paths).
 
     Returns:
         The denoised positions, (V, 3)."""
-    from ..denoise import METHODS
-
-    cont, statics = METHODS[method].split(**params)
-    return _run(mesh, x, cont, aux, method, statics)
+    cont, statics, count = _split(method, params, counted)
+    return _run(mesh, x, cont, aux, count, method, statics)
 
 
 @functools.partial(jax.jit, static_argnames=("method", "statics"))
-def _tilt(mesh: Mesh, noisy_input, target, nu, ell, continuous: dict, aux: dict, method: str, statics: tuple):
-    return edge_tilt(mesh, nu, ell, _run(mesh, noisy_input, continuous, aux, method, statics) - target)
+def _tilt(mesh: Mesh, noisy_input, target, nu, ell, continuous: dict, aux: dict, count, method: str, statics: tuple):
+    return edge_tilt(mesh, nu, ell, _apply(mesh, noisy_input, continuous, aux, count, method, statics) - target)
 
 
-def setting_tilt(mesh: Mesh, noisy_input, target, nu, ell, method: str, params: dict, aux: dict):
+def setting_tilt(mesh: Mesh, noisy_input, target, nu, ell, method: str, params: dict, aux: dict,
+                 counted: bool = False):
     """T = A(f(ŷ) − ỹ) of one setting on one recorruption (ŷ, ỹ), in one compiled program.
 
     Arguments:
@@ -74,13 +98,12 @@ def setting_tilt(mesh: Mesh, noisy_input, target, nu, ell, method: str, params: 
         method: a registry name.
         params: its parameters.
         aux: its prepared arrays.
+        counted: as for :func:`run_setting`.
 
     Returns:
         (F, 3)."""
-    from ..denoise import METHODS
-
-    cont, statics = METHODS[method].split(**params)
-    return _tilt(mesh, noisy_input, target, nu, ell, cont, aux, method, statics)
+    cont, statics, count = _split(method, params, counted)
+    return _tilt(mesh, noisy_input, target, nu, ell, cont, aux, count, method, statics)
 
 
 @dataclasses.dataclass(frozen=True)
