@@ -48,7 +48,7 @@ from .recorrupt import edge_tilt
 __all__ = ["SearchPath", "PATHS", "TAUBIN_LAMS", "TAUBIN_PASS_BANDS", "TAUBIN_MAX_ITERATIONS", "taubin_mu",
            "BILATERAL_PATH_SIGMAS", "BILATERAL_PATH_FIXED", "BILATERAL_PATH_MAX_ITERATIONS",
            "BILATERAL_FEATURE_SETTING", "BILATERAL_FEATURE_MAX_ITERATIONS", "PATH_CAPACITY_STEP", "PATH_STOP_FACTOR",
-           "PATH_STOP_PATIENCE", "path_risks"]
+           "PATH_STOP_PATIENCE", "one_iteration", "path_risks"]
 
 #: the Taubin path's grid (module docstring): shrinking steps λ, pass bands k_PB, and every count up to the last
 TAUBIN_LAMS = (0.2, 0.35, 0.5, 0.7)
@@ -112,13 +112,31 @@ PATH_STOP_FACTOR = 1.2
 PATH_STOP_PATIENCE = 5
 
 
+def one_iteration(mesh: Mesh, x, continuous: dict, aux: dict, method: str, statics: tuple):
+    """One iteration of a path's method (``iterations=1``) from positions ``x``: the step both the
+    paths' loops and the counted runs of :func:`~jaxmesh.tune.race.run_setting` repeat.
+
+    Arguments:
+        mesh: the mesh (single).
+        x: positions, (*batch, V, 3).
+        continuous: the traced parameters.
+        aux: the method's prepared arrays.
+        method: a registry name.
+        statics: the static parameters, ``iterations`` left out.
+
+    Returns:
+        The positions after one iteration, x's shape."""
+    from ..denoise import METHODS
+
+    return METHODS[method](mesh.with_vertices(x), **continuous, **dict(statics), iterations=1, **aux).vertices
+
+
 @functools.partial(jax.jit, static_argnames=("method", "statics", "capacity"))
 def _path_risks(mesh: Mesh, inputs, targets, nu, ell, continuous: dict, aux: dict, count, factor, patience,
                 method: str, statics: tuple, capacity: int):
     """Mean edge-tilt risk Σ‖A(x_t − target)‖²/F over the draws after every
     iteration t = 1..count of one setting, stopped early (module docstring, *Stopping*):
     shape (capacity,), +inf past the last iteration run.  ``inputs``, ``targets``: (D, V, 3)."""
-    from ..denoise import METHODS
 
     def going(state):
         t, _, risks, best_t = state
@@ -128,7 +146,7 @@ def _path_risks(mesh: Mesh, inputs, targets, nu, ell, continuous: dict, aux: dic
 
     def step(state):
         t, x, risks, best_t = state
-        x = METHODS[method](mesh.with_vertices(x), **continuous, **dict(statics), iterations=1, **aux).vertices
+        x = one_iteration(mesh, x, continuous, aux, method, statics)
         r = edge_tilt(mesh, nu, ell, x - targets)                                    # (D, F, 3)
         risks = risks.at[t].set(jnp.mean(jnp.sum(r * r, axis=(-2, -1))) / mesh.num_faces)
         return t + 1, x, risks, jnp.where(risks[t] < risks[best_t], t, best_t)

@@ -7,9 +7,10 @@ recorruption; then only the ``RACE_KEEP`` best of each *family* (each method
 among the fixed candidates, each path) go on to the other draws, and
 :func:`~jaxmesh.tune.choose_denoiser` takes its winner and its leaders among
 those.  The draws are common to every setting, so the first draw's order within
-a family is already close to the final one.  A setting's estimate is the
-recorrupted one of :mod:`jaxmesh.tune.recorrupt`: Σ_d ‖A(f(ŷ_d) − ỹ_d)‖²/F over
-the draws d, less the noise constant.
+a family is already close to the final one.  A setting's estimate is
+Σ_d ‖A(f(ŷ_d) − ỹ_d)‖²/F over the draws d less a constant: the recorrupted
+estimate of :mod:`jaxmesh.tune.recorrupt` (its noise constant), or the held-out
+one of :mod:`jaxmesh.tune.heldout` (ỹ the noisy mesh, no constant).
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..mesh import Mesh
-from .paths import SearchPath, path_risks
+from .paths import SearchPath, one_iteration, path_risks
 from .recorrupt import edge_tilt
 
 __all__ = ["RACE_KEEP", "race", "run_setting", "setting_tilt"]
@@ -36,12 +37,9 @@ def _apply(mesh: Mesh, x, continuous: dict, aux: dict, count, method: str, stati
     every count: the search paths' methods, :class:`~jaxmesh.tune.SearchPath`)."""
     from ..denoise import METHODS
 
-    def once(x, **more):
-        return METHODS[method](mesh.with_vertices(x), **continuous, **dict(statics), **more, **aux).vertices
-
     if count is None:
-        return once(x)
-    return jax.lax.fori_loop(0, count, lambda _, x: once(x, iterations=1), x)
+        return METHODS[method](mesh.with_vertices(x), **continuous, **dict(statics), **aux).vertices
+    return jax.lax.fori_loop(0, count, lambda _, x: one_iteration(mesh, x, continuous, aux, method, statics), x)
 
 
 @functools.partial(jax.jit, static_argnames=("method", "statics"))
