@@ -294,7 +294,7 @@ def _tilts(noisy: Mesh, inputs, targets, candidates: Sequence[Candidate], auxes:
                          for x, t in zip(inputs, targets)])
 
 
-def _held_out(noisy: Mesh, pilot: Mesh, n, ell, core, auxes: dict, impulsive: tuple, key):
+def _held_out(noisy: Mesh, pilot: Mesh, nu_pilot, n, ell, core, auxes: dict, impulsive: tuple, key):
     """The held-out estimate's face normals (zero off the measured faces), its draws and the
     measured faces' count (:mod:`jaxmesh.tune.heldout`), or None where too few faces are measured."""
     y = noisy.vertices
@@ -303,7 +303,7 @@ def _held_out(noisy: Mesh, pilot: Mesh, n, ell, core, auxes: dict, impulsive: tu
     measured = measured_faces(noisy, untouched) & core
     if measured.sum() < HELD_OUT_MIN_FACES:
         return None
-    weights = stratum_weights(feature_faces(noisy, face_normals(pilot)), measured, core)
+    weights = stratum_weights(feature_faces(noisy, nu_pilot), measured, core)
     nu = face_normals(noisy) * jnp.asarray(np.sqrt(weights), noisy.dtype)[:, None]     # ‖A_f‖² weighted by w_f
     fraction, sigma = impulsive
 
@@ -327,7 +327,7 @@ def _rank(noisy: Mesh, core, ell, candidates, paths, s_vertex, s_t, draws, blend
     pilot = noisy.with_vertices(run_setting(noisy, y, "guided_normal", {}, auxes["guided_normal"]))
     nu, n = _pilot_normals(pilot)
     counted = np.ones(noisy.num_faces, bool) if core is None else np.asarray(core, bool)
-    held = _held_out(noisy, pilot, n, ell, counted, auxes, impulsive, key) if impulsive else None
+    held = _held_out(noisy, pilot, nu, n, ell, counted, auxes, impulsive, key) if impulsive else None
     if held is not None:
         nu, draw, count = held
         inputs, targets = draw(draws)
