@@ -31,8 +31,11 @@ load it instead of compiling.  The ``jaxmesh`` command turns it on for every run
 in :func:`default_cache_dir` (``$JAXMESH_CACHE_DIR``, else
 ``$XDG_CACHE_HOME/jaxmesh/jax``, else ``~/.cache/jaxmesh/jax``), at most
 :data:`CACHE_MAX_BYTES` (least recently used entries are evicted).
-``JAXMESH_CACHE_DIR=off`` (or ``--no-cache``) turns it off; deleting the folder
-empties it.
+The same call sets the folder's ``exported/`` subfolder as the store of
+:mod:`jaxmesh._exported`, where the blind search's large programs are kept already
+lowered: the persistent cache spares a process XLA's compile but not the tracing and
+lowering that come before its lookup.  ``JAXMESH_CACHE_DIR=off`` (or ``--no-cache``)
+turns both off; deleting the folder empties both.
 """
 
 from __future__ import annotations
@@ -43,8 +46,10 @@ import sys
 import warnings
 from pathlib import Path
 
+from ._exported import set_store
+
 __all__ = ["prefer_fast_cpu_compiles", "CPU_COMPILE_FLAG", "MEASURED_JAXLIB", "enable_compilation_cache",
-           "default_cache_dir", "CACHE_MIN_COMPILE_SECONDS", "CACHE_MAX_BYTES", "CACHE_OFF"]
+           "default_cache_dir", "CACHE_MIN_COMPILE_SECONDS", "CACHE_MAX_BYTES", "CACHE_OFF", "EXPORTED_FOLDER"]
 
 #: the flag added to XLA_FLAGS
 CPU_COMPILE_FLAG = "--xla_cpu_use_fusion_emitters=false"
@@ -54,6 +59,8 @@ MEASURED_JAXLIB = ((0, 10),)
 CACHE_MIN_COMPILE_SECONDS = 0.0
 #: the persistent cache's size limit (least recently used entries are evicted past it)
 CACHE_MAX_BYTES = 1 << 30
+#: the subfolder of the cache where the search's lowered programs are kept (:mod:`jaxmesh._exported`)
+EXPORTED_FOLDER = "exported"
 #: values of ``JAXMESH_CACHE_DIR`` that turn the persistent cache off
 CACHE_OFF = ("off", "0", "none", "false", "no", "")
 
@@ -143,4 +150,5 @@ def enable_compilation_cache(path: str | os.PathLike | None = None, *,
     jax.config.update("jax_persistent_cache_min_compile_time_secs", float(min_compile_seconds))
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
     jax.config.update("jax_compilation_cache_max_size", int(max_bytes))
+    set_store(folder / EXPORTED_FOLDER)
     return folder

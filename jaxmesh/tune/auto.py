@@ -45,14 +45,16 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from typing import Any
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._exported import stored_jit
 from .._private import PATCH_STREAM, library_key
+from .._threads import concurrent_map
 from ..geometry import face_normals, mean_edge_length, vertex_normals
 from ..mesh import Mesh
 from .blend import (BLEND_DRAWS, BLEND_SALT, BLEND_SIZE, SNAPSHOT_FACTORS, best_mixture, check_snapshots,
@@ -159,7 +161,7 @@ class AutoResult:
                 "candidates": [{"method": m, "params": p, "risk": r} for m, p, r in self.table]}
 
 
-@jax.jit
+@stored_jit
 def _pilot_normals(pilot: Mesh):
     """The pilot's face normals ν_f and area-weighted vertex normals n_i."""
     return face_normals(pilot), vertex_normals(pilot, "area")
@@ -272,8 +274,9 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
     y = noisy.vertices
     auxes = {m: METHODS[m].prepare(noisy) for m in {c[0] for c in components}}
     counted = {path.method for path in paths}
-    out = jax.block_until_ready(sum(w * run_setting(noisy, y, m, p, auxes[m], m in counted)
-                                    for m, p, w in components))
+    runs = concurrent_map(lambda c: jax.block_until_ready(run_setting(noisy, y, c[0], c[1], auxes[c[0]],
+                                                                      c[0] in counted)), components)
+    out = jax.block_until_ready(sum(w * x for (_, _, w), x in zip(components, runs)))
     clock.append(time.perf_counter())
     seconds = dict(zip(("noise_law", "patches", "ranking", "choice"), np.diff(clock).round(3).tolist()))
     method, params = (components[0][0], components[0][1]) if len(components) == 1 else ("blend", {})
@@ -284,14 +287,16 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
 
 
 def _tilts(noisy: Mesh, inputs, targets, candidates: Sequence[Candidate], auxes: dict, nu, ell,
-           counted=frozenset()) -> Iterator:
+           counted=frozenset()) -> list[np.ndarray]:
     """T = A(f(ŷ_d) − ỹ_d) of every candidate f on every draw (ŷ_d, ỹ_d), one array (D, F, 3) per
-    candidate, candidate by candidate (the methods in ``counted`` with their count traced).  One
-    mesh per call: batching the draws or the settings into one call ran slower on CPU under the
-    ``jaxmesh`` command's XLA flags (:mod:`jaxmesh.compiler`) and compiled a program per batch size."""
-    for c in candidates:
-        yield jnp.stack([setting_tilt(noisy, x, t, nu, ell, c.method, c.params, auxes[c.method], c.method in counted)
-                         for x, t in zip(inputs, targets)])
+    candidate, the candidates side by side on the host's cores (:mod:`jaxmesh._threads`; the methods
+    in ``counted`` with their count traced).  One mesh per call: batching the draws or the settings
+    into one call ran slower on CPU under the ``jaxmesh`` command's XLA flags
+    (:mod:`jaxmesh.compiler`) and compiled a program per batch size."""
+    def tilts(c: Candidate) -> np.ndarray:
+        return np.stack([np.asarray(setting_tilt(noisy, x, t, nu, ell, c.method, c.params, auxes[c.method],
+                                                 c.method in counted)) for x, t in zip(inputs, targets)])
+    return concurrent_map(tilts, candidates)
 
 
 def _held_out(noisy: Mesh, pilot: Mesh, nu_pilot, n, ell, core, auxes: dict, impulsive: tuple, key):
@@ -351,7 +356,7 @@ def _rank(noisy: Mesh, core, ell, candidates, paths, s_vertex, s_t, draws, blend
         fresh = draw(blend_draws, BLEND_SALT)
         blended = [Candidate(*r[:2]) for r in rows]
         counted = {path.method for path in paths}
-        gram = tilt_gram(np.stack([np.asarray(t) for t in _tilts(noisy, *fresh[:2], blended, auxes, nu, ell, counted)]))
+        gram = tilt_gram(np.stack(_tilts(noisy, *fresh[:2], blended, auxes, nu, ell, counted)))
         mix, total = best_mixture(gram, next(i for i, r in enumerate(rows) if r is table[0]), blend_size)
         if len(mix) > 1:
             components = tuple((rows[i][0], rows[i][1], w) for i, w in mix)

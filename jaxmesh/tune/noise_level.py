@@ -57,11 +57,11 @@ from __future__ import annotations
 
 import warnings
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 import scipy.sparse as sp
 
+from .._exported import stored_jit
 from ..geometry import mean_edge_length, vertex_normals
 from ..mesh import Mesh
 from ..operators import umbrella
@@ -101,7 +101,7 @@ def umbrella_square_row_norms(mesh: Mesh) -> np.ndarray:
 PROJECTION_SMOOTHING = 3
 
 
-@jax.jit
+@stored_jit
 def _projection_normals(mesh: Mesh):
     """n_i: the area-weighted vertex normals of the mesh after
     :data:`PROJECTION_SMOOTHING` umbrella steps x ← x + ½ K x (module docstring)."""
@@ -116,7 +116,7 @@ def _normal_high_pass(mesh: Mesh, u, normals=None) -> np.ndarray:
     return np.asarray(_k2_parts(mesh, jnp.asarray(u, mesh.dtype), n)[0], dtype=np.float64)
 
 
-@jax.jit
+@stored_jit
 def _k2_parts(mesh: Mesh, u, n):
     """(n_i · (K² u)_i, (I − n_i n_iᵀ)(K² u)_i): the normal and tangential parts of K² u."""
     k2 = umbrella(mesh, umbrella(mesh, u))

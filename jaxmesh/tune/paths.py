@@ -35,13 +35,13 @@ Why these grids, and what they were measured against: the denoising guide.
 from __future__ import annotations
 
 import dataclasses
-import functools
 import itertools
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._exported import stored_jit
 from ..mesh import Mesh
 from .recorrupt import edge_tilt
 
@@ -131,7 +131,7 @@ def one_iteration(mesh: Mesh, x, continuous: dict, aux: dict, method: str, stati
     return METHODS[method](mesh.with_vertices(x), **continuous, **dict(statics), iterations=1, **aux).vertices
 
 
-@functools.partial(jax.jit, static_argnames=("method", "statics", "capacity"))
+@stored_jit(static_argnames=("method", "statics", "capacity"))
 def _path_risks(mesh: Mesh, inputs, targets, nu, ell, continuous: dict, aux: dict, count, factor, patience,
                 method: str, statics: tuple, capacity: int):
     """Mean edge-tilt risk Σ‖A(x_t − target)‖²/F over the draws after every

@@ -16,12 +16,13 @@ one of :mod:`jaxmesh.tune.heldout` (ỹ the noisy mesh, no constant).
 from __future__ import annotations
 
 import dataclasses
-import functools
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._exported import stored_jit
+from .._threads import concurrent_map
 from ..mesh import Mesh
 from .paths import SearchPath, one_iteration, path_risks
 from .recorrupt import edge_tilt
@@ -42,7 +43,7 @@ def _apply(mesh: Mesh, x, continuous: dict, aux: dict, count, method: str, stati
     return jax.lax.fori_loop(0, count, lambda _, x: one_iteration(mesh, x, continuous, aux, method, statics), x)
 
 
-@functools.partial(jax.jit, static_argnames=("method", "statics"))
+@stored_jit(static_argnames=("method", "statics"))
 def _run(mesh: Mesh, x, continuous: dict, aux: dict, count, method: str, statics: tuple):
     return _apply(mesh, x, continuous, aux, count, method, statics)
 
@@ -78,7 +79,7 @@ def run_setting(mesh: Mesh, x, method: str, params: dict, aux: dict, counted: bo
     return _run(mesh, x, cont, aux, count, method, statics)
 
 
-@functools.partial(jax.jit, static_argnames=("method", "statics"))
+@stored_jit(static_argnames=("method", "statics"))
 def _tilt(mesh: Mesh, noisy_input, target, nu, ell, continuous: dict, aux: dict, count, method: str, statics: tuple):
     return edge_tilt(mesh, nu, ell, _apply(mesh, noisy_input, continuous, aux, count, method, statics) - target)
 
@@ -150,15 +151,18 @@ def race(noisy: Mesh, candidates, paths, inputs, targets, nu, ell, auxes: dict, 
                 for i, path in enumerate(paths) for setting in path.settings]
     draws = len(inputs)
     first = draws if race_keep is None else 1
-    sums = [_entry_sums(noisy, e, inputs[:first], targets[:first], nu, ell, auxes) for e in entries]
+    sums = concurrent_map(lambda e: _entry_sums(noisy, e, inputs[:first], targets[:first], nu, ell, auxes), entries)
     families = list(dict.fromkeys(e.family for e in entries))
     finished = set(range(len(entries)))
     if first < draws:
         finished = {i for family in families
                     for i in sorted((i for i, e in enumerate(entries) if e.family == family),
                                     key=lambda i: float(np.min(sums[i])))[:race_keep]}
-        for i in finished:
-            sums[i] = sums[i] + _entry_sums(noisy, entries[i], inputs[first:], targets[first:], nu, ell, auxes)
+        rest = sorted(finished)
+        more = concurrent_map(lambda i: _entry_sums(noisy, entries[i], inputs[first:], targets[first:], nu, ell,
+                                                    auxes), rest)
+        for i, extra in zip(rest, more):
+            sums[i] = sums[i] + extra
 
     def row(i: int) -> tuple:
         e, t = entries[i], int(np.argmin(sums[i]))

@@ -42,13 +42,13 @@ the fandisk at 0.7ℓ̄, so the chooser draws independently unless asked.
 
 from __future__ import annotations
 
-import functools
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from .._exported import stored_jit
 from .._private import RECORRUPTION_STREAM, dot, library_key, lift
 from ..mesh import Mesh
 
@@ -98,7 +98,7 @@ def recorruptions(noisy: Mesh, nu, n, ell, s, s_t: float, draws: int, key, salt:
     return zs, float(_trace(noisy, nu, n, s_v, jnp.asarray(s_t, noisy.dtype), ell))
 
 
-@functools.partial(jax.jit, static_argnames=("draws", "antithetic"))
+@stored_jit(static_argnames=("draws", "antithetic"))
 def _fields(k, s_v, n, s_t, draws: int, antithetic: bool):
     """The fields z of :func:`recorruptions`, (draws, V, 3), in one program."""
     fresh = (draws + 1) // 2 if antithetic else draws
@@ -110,7 +110,7 @@ def _fields(k, s_v, n, s_t, draws: int, antithetic: bool):
     return zs
 
 
-@jax.jit
+@stored_jit
 def _trace(noisy: Mesh, nu, n, s_v, s_t, ell):
     """tr(AᵀAΣ)/F of :func:`recorruptions` (each edge difference sees its two vertices)."""
     dots = jnp.sum(nu[:, None, :] * n[noisy.faces], axis=-1) ** 2                # (F, 3)
