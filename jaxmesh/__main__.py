@@ -1,7 +1,5 @@
 """``python -m jaxmesh``: the same as the ``jaxmesh`` command."""
 
-import sys
+from .cli import command
 
-from .cli import main
-
-sys.exit(main())
+command()

@@ -11,12 +11,16 @@ machine output, one JSON object per line), diagnostics on stderr prefixed with
 with :func:`jaxmesh.compiler.prefer_fast_cpu_compiles`'s XLA setting unless
 ``JAXMESH_XLA_DEFAULTS=1``.  Compiled programs are kept between runs in JAX's
 persistent compilation cache (:func:`jaxmesh.compiler.enable_compilation_cache`;
-``--no-cache`` or ``JAXMESH_CACHE_DIR=off`` for none).
+``--no-cache`` or ``JAXMESH_CACHE_DIR=off`` for none).  The executable
+(:func:`command`) exits as soon as its output is flushed, without the interpreter's
+teardown (freeing XLA's programs and buffers took 0.5–1 s of a short command).
 """
 
 from __future__ import annotations
 
 import argparse
+import logging
+import os
 import sys
 import warnings
 
@@ -24,7 +28,7 @@ from . import compress, convert, decompress, demo, denoise, hash, info, noise, s
 from ._common import CLIError
 from ._run import run_command
 
-__all__ = ["main", "build_parser", "COMMANDS", "CLIError"]
+__all__ = ["main", "command", "build_parser", "COMMANDS", "CLIError"]
 
 COMMANDS = {module.__name__.rsplit(".", 1)[-1]: module
             for module in (info, convert, noise, denoise, demo, stats, hash, compress, decompress, view)}
@@ -72,3 +76,28 @@ def main(argv: list[str] | None = None) -> int:
 
             enable_compilation_cache()
         return run_command(args._run, args)
+
+
+def command() -> None:
+    """The ``jaxmesh`` executable (and ``python -m jaxmesh``): :func:`main` on ``sys.argv``,
+    then the process ends with its exit status once stdout and stderr are flushed, skipping
+    the interpreter's teardown (module docstring).  Every file a command writes is complete
+    (and closed) when :func:`main` returns.
+
+    Arguments:
+
+    Returns:
+        Never: the process exits."""
+    try:
+        code = main()
+    except SystemExit as done:   # argparse: --help, --version, a usage error
+        if not (done.code is None or isinstance(done.code, int)):
+            raise
+        code = done.code or 0
+    logging.shutdown()
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (BrokenPipeError, OSError, ValueError):   # a reader that went away, a closed stream
+            pass
+    os._exit(code)

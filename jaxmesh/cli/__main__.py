@@ -1,7 +1,5 @@
 """``python -m jaxmesh.cli``: the same as the ``jaxmesh`` command."""
 
-import sys
+from . import command
 
-from . import main
-
-sys.exit(main())
+command()

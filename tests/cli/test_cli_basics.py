@@ -62,6 +62,29 @@ def test_python_dash_m_entry_point():
     assert json.loads(r.stdout)["vertices"] == 2930
 
 
+def test_the_executable_flushes_everything_and_keeps_every_exit_status(tmp_path):
+    """The executable ends the process without the interpreter's teardown: what it printed
+    and wrote is all there, and the exit statuses are main's and argparse's."""
+    def run(*args):
+        return subprocess.run([sys.executable, "-m", "jaxmesh", *args], capture_output=True, text=True, timeout=120)
+
+    out = tmp_path / "n.ply"
+    written = run("noise", "--sample", "spot", str(out), "--sigma", "0.1")
+    assert written.returncode == 0 and "jaxmesh: wrote" in written.stderr, written.stderr
+    import jaxmesh
+
+    assert jaxmesh.load(out).num_vertices == 2930                 # the file is complete
+    both = run("info", "--json", str(out), str(tmp_path / "missing.ply"))
+    assert both.returncode == 1 and "missing.ply" in both.stderr
+    assert json.loads(both.stdout.splitlines()[0])["vertices"] == 2930   # printed before the error, flushed
+    usage = run("denoise", "--no-such-flag")
+    assert usage.returncode == 2 and "usage:" in usage.stderr
+    helped = run("--help")
+    from jaxmesh.cli import COMMANDS
+
+    assert helped.returncode == 0 and all(name in helped.stdout for name in COMMANDS)   # the whole help
+
+
 def test_convert_never_overwrites_without_force(capsys, tmp_path):
     import jaxmesh
 
