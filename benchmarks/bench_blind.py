@@ -8,10 +8,11 @@ lengths (``jaxmesh noise``) is denoised by fresh ``jaxmesh`` processes, each tim
 from start to exit (import, read, search, write):
 
 * the default (``--method auto``, ranked on patches) with an empty compilation
-  cache, then again with the cache that run left (warm);
+  cache, then again with the cache that run left (warm), ``--repeat`` times (the
+  median is reported, with the range);
 * the same with ``--search-vertices all`` (ranked on the whole mesh), warm;
-* ``--method taubin`` at its defaults, warm: one filter, the peer the default's
-  time is compared with.
+* ``--method taubin`` at its defaults, warm, run between the default's warm runs:
+  one filter, the peer the default's time is compared with.
 
 ``--big`` adds the bunny subdivided once and twice (midpoints, ~139k and ~556k
 vertices): the default with its own empty cache and warm, and Taubin.  Each
@@ -59,22 +60,35 @@ def describe(summary: dict) -> str:
     return f"{parts} (ranked on {auto['search_vertices']} vertices)"
 
 
-def bench_mesh(name: str, noisy: Path, work: Path, rows: list, stages: list, whole: bool, cold: bool) -> None:
+def bench_mesh(name: str, noisy: Path, work: Path, rows: list, stages: list, whole: bool, cold: bool,
+               repeat: int) -> None:
     cache = work / f"cache-{name}"
     out = lambda tag: str(work / f"{name}-{tag}.ply")     # noqa: E731
     if cold:
         t, s = timed_run(["denoise", str(noisy), out("cold")], cache)
         rows.append((name, "default (auto), empty compilation cache", t, describe(s)))
-    t_auto, s = timed_run(["denoise", str(noisy), out("warm")], cache)
-    rows.append((name, "default (auto), warm cache", t_auto, describe(s)))
+    autos, taubins = [], []
+    for _ in range(repeat):    # interleaved, so that the machine's drift moves both alike
+        autos.append(timed_run(["denoise", str(noisy), out("warm"), "--force"], cache))
+        taubins.append(timed_run(["denoise", str(noisy), out("taubin"), "--method", "taubin", "--force"], cache))
+    (t_auto, s), spread_auto = median_run(autos)
+    rows.append((name, f"default (auto), warm cache, median of {repeat}{spread_auto}", t_auto, describe(s)))
     stages.append((s["auto"]["search_vertices"], t_auto, s["auto"]["seconds"], name))
     if whole:
         t, s = timed_run(["denoise", str(noisy), out("whole"), "--search-vertices", "all"], cache)
         rows.append((name, "auto --search-vertices all, warm cache", t, describe(s)))
-    t_taubin, s = timed_run(["denoise", str(noisy), out("taubin"), "--method", "taubin"], cache)
-    rows.append((name, "--method taubin (one filter), warm cache", t_taubin, describe(s)))
-    rows.append((name, "default / one filter", t_auto / t_taubin, ""))
+    (t_taubin, s), spread_taubin = median_run(taubins)
+    rows.append((name, f"--method taubin (one filter), warm cache, median of {repeat}{spread_taubin}", t_taubin,
+                 describe(s)))
+    rows.append((name, "default / one filter (medians)", t_auto / t_taubin, ""))
     stages[-1] += (t_taubin,)
+
+
+def median_run(runs: list) -> tuple:
+    """The run of median time, and the runs' range as text."""
+    ordered = sorted(runs, key=lambda r: r[0])
+    spread = f" ({ordered[0][0]:.2f}–{ordered[-1][0]:.2f})" if len(runs) > 1 else ""
+    return ordered[(len(ordered) - 1) // 2], spread
 
 
 def main() -> None:
@@ -82,6 +96,7 @@ def main() -> None:
     ap.add_argument("--sigma", type=float, default=0.2, help="noise, in mean edge lengths")
     ap.add_argument("--big", action="store_true", help="also the bunny subdivided twice (~556k vertices)")
     ap.add_argument("--skip-whole", action="store_true", help="leave out the whole-mesh search (the slowest row)")
+    ap.add_argument("--repeat", type=int, default=3, help="warm runs of the default and of Taubin (medians)")
     args = ap.parse_args()
     rows: list = []
     stages: list = []
@@ -103,7 +118,8 @@ def main() -> None:
             noisy = work / f"noisy-{i}.ply"
             subprocess.run(JAXMESH + ["noise", str(path), str(noisy), "--sigma", str(args.sigma)], check=True,
                            env={**os.environ, "JAXMESH_CACHE_DIR": "off"}, capture_output=True)
-            bench_mesh(name, noisy, work, rows, stages, whole=i == 0 and not args.skip_whole, cold=True)
+            bench_mesh(name, noisy, work, rows, stages, whole=i == 0 and not args.skip_whole, cold=True,
+                       repeat=args.repeat)
     print(f"# blind `jaxmesh denoise` end to end (σ = {args.sigma}ℓ̄, {os.cpu_count()} CPU cores)\n")
     print("| mesh | run | seconds (ratio) | choice |")
     print("|---|---|---|---|")
