@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Float, Int
 
 from .._private import safe_normalize
@@ -57,11 +58,14 @@ def patch_inconsistency(graph: FaceGraph, normals: Float[Array, "*batch F 3"]) -
     Returns:
         H(P_j) per face, (*batch, F)."""
     ring = normals[..., graph.ring, :]                                   # (*b, F, K, 3)
-    # n_a · n_b as three outer products: XLA fuses them into one loop (a batched (K, 3) @ (3, K) matmul
-    # per face runs 2-3x slower on CPU)
-    dots = sum(ring[..., :, None, c] * ring[..., None, :, c] for c in range(3))
-    pair = graph.ring_mask[:, :, None] & graph.ring_mask[:, None, :]
-    d2 = jnp.max(jnp.where(pair, 2 - 2 * dots, 0), axis=(-2, -1))
+    # the pairs (a, b) with a <= b only (the differences are symmetric: the same maximum, in 55% of the
+    # work at K = 20); n_a · n_b written out by component: XLA fuses it into one loop (a batched
+    # (K, 3) @ (3, K) matmul per face runs 2-3x slower on CPU)
+    ia, ib = np.triu_indices(ring.shape[-2])
+    left, right = ring[..., ia, :], ring[..., ib, :]                    # (*b, F, K(K+1)/2, 3)
+    dots = sum(left[..., c] * right[..., c] for c in range(3))
+    pair = graph.ring_mask[:, ia] & graph.ring_mask[:, ib]
+    d2 = jnp.max(jnp.where(pair, 2 - 2 * dots, 0), axis=-1)
     spread = jnp.sqrt(jnp.maximum(d2, 0))
     a = normals[..., graph.edge_faces[:, 0], :]
     b = normals[..., graph.edge_faces[:, 1], :]
