@@ -83,7 +83,77 @@ def _check_indices(faces: np.ndarray, n: int, base: int, lines: np.ndarray):
                          f"({base}..{n - 1 + base} for {n} vertices)")
 
 
+def _lines_of_kind(buf: np.ndarray, starts: np.ndarray, ends: np.ndarray, chosen: np.ndarray) -> bytes:
+    """The bytes of the chosen lines (line ends included), concatenated."""
+    delta = np.zeros(len(buf) + 1, np.int8)
+    delta[starts[chosen]] += 1
+    delta[ends[chosen] + 1] -= 1
+    return buf[np.cumsum(delta[:-1], dtype=np.int8) > 0].tobytes()
+
+
+def _only_ignored(buf: np.ndarray, starts: np.ndarray, ends: np.ndarray, other: np.ndarray) -> bool:
+    """Whether every other line is blank, a comment or an ignored statement, read as :func:`read_obj`
+    reads it (the part before ``#``, stripped, up to its first space), on each line's first 16 bytes;
+    False where those do not settle it."""
+    if not other.any():
+        return True
+    heads = np.minimum(starts[other][:, None] + np.arange(16), ends[other][:, None])
+    for row in np.unique(buf[heads], axis=0):
+        raw = row.tobytes()
+        head = raw.split(b"\n", 1)[0]
+        if any(c >= 0x80 or 0x1C <= c <= 0x1F for c in head):
+            return False
+        body = head.split(b"#", 1)[0].strip()
+        complete = b"\n" in raw or b"#" in head
+        if not body and complete:
+            continue
+        key, space, _ = body.partition(b" ")
+        if not (space or complete) or key.decode("ascii") not in _OBJ_IGNORED:
+            return False
+    return True
+
+
+def _plain_obj(data: bytes):
+    """The fast reading of a plain OBJ, or None where the file is not one: every vertex line
+    ``v x y z`` and every face line ``f a b c`` (positive indices, ``a/t/n`` corners allowed) with
+    nothing else on it, no tabs or line continuations, every other line blank, a comment or an
+    ignored statement, the file ending with a line end.  The lines are sorted with numpy and each
+    number goes through the same ``float`` and ``int`` as in :func:`read_obj`, so a plain file reads
+    the same either way; anything else (and every error) is left to :func:`read_obj`."""
+    if data.startswith(b"\xef\xbb\xbf"):
+        data = data[3:]
+    if (not data.endswith(b"\n") or b"\\" in data or b"\t" in data or data.startswith((b"\xff\xfe", b"\xfe\xff"))):
+        return None
+    buf = np.frombuffer(data, np.uint8)
+    ends = np.flatnonzero(buf == ord("\n"))
+    starts = np.concatenate(([0], ends[:-1] + 1))
+    key = np.where(buf[np.minimum(starts + 1, len(buf) - 1)] == ord(" "), buf[starts], 0)
+    key[starts == ends] = 0
+    is_v, is_f = key == ord("v"), key == ord("f")
+    if not _only_ignored(buf, starts, ends, ~(is_v | is_f)):
+        return None
+    nv, nf = int(is_v.sum()), int(is_f.sum())
+    v_tokens = _lines_of_kind(buf, starts, ends, is_v).split()
+    f_tokens = _lines_of_kind(buf, starts, ends, is_f).split()
+    if (len(v_tokens) != 4 * nv or len(f_tokens) != 4 * nf
+            or v_tokens[::4].count(b"v") != nv or f_tokens[::4].count(b"f") != nf):
+        return None           # a line with other than three numbers, or a comment after them
+    del v_tokens[::4], f_tokens[::4]
+    try:
+        vertices = np.array(list(map(float, v_tokens)), np.float64).reshape(-1, 3)
+        corners = f_tokens if b"/" not in data else [t.partition(b"/")[0] for t in f_tokens]
+        faces = np.array(list(map(int, corners)), np.int64).reshape(-1, 3)
+    except ValueError:
+        return None
+    if faces.size and (faces.min() < 1 or faces.max() > len(vertices)):
+        return None           # 0, relative or out-of-range indices: read_obj says which line
+    return vertices, faces - 1, len(faces), 0
+
+
 def read_obj(data: bytes):
+    plain = _plain_obj(data)
+    if plain is not None:
+        return plain
     text = _text(data).replace("\\\n", " ")  # line continuations
     lines, terminated = _lines(text)
     verts, faces, face_line, polys = [], [], [], 0

@@ -213,3 +213,47 @@ def test_other_ply_layouts_fall_back_to_the_general_reader(tmp_path):
     assert m.num_faces == 2
     (tmp_path / "a.ply").write_bytes(ascii_ply)
     assert jaxmesh.load(tmp_path / "a.ply").num_faces == 2
+
+
+def _obj_variants(seed: int) -> bytes:
+    """A small OBJ, plain or with one of the irregularities the strict reader judges line by line."""
+    rng = np.random.default_rng(seed)
+    nv = int(rng.integers(3, 7))
+    lines = [f"v {' '.join(repr(float(x)) for x in rng.normal(size=3))}" for _ in range(nv)]
+    lines += [f"f {' '.join(str(int(i)) for i in rng.choice(np.arange(1, nv + 1), 3, replace=False))}"
+              for _ in range(int(rng.integers(1, 5)))]
+    extras = ["# a comment", "", "   ", "vn 0 0 1", "  vt 0 0", "g#x", "s off", "usemtl m", "foo 1", "vn\x0b0 0 1",
+              "o\x0cname", "\x1cvn 0 0 1", "vnn 1", "averyveryveryverylongkeyword x", "#", "v 1 2", "v 1 2 3 4",
+              "v 1 2 3 # c", "v  1 2 3", "v 1 2 3 ", "f 1 2", "f 0 1 2", "f -1 -2 -3", "f 1 2 3 4", "f 1/1/1 2//2 3/3",
+              "f 1 2 99", "f /1 2 3", "v 1e0 1_0 +2", "v nan 0 0", "f 1 2 3\x0c", "v 1\xa02 3 4", "l 1 2",
+              " " * 18 + "foo 1", " " * 18 + "vn 0 0 1", "usemtl_averyverylongname x"]
+    for _ in range(int(rng.integers(0, 4))):
+        lines.insert(int(rng.integers(0, len(lines) + 1)), extras[int(rng.integers(len(extras)))])
+    end = ["\n", "\r\n"][int(rng.integers(2))]
+    text = end.join(lines) + (end if rng.random() < 0.9 else "")
+    if rng.random() < 0.1:
+        text = text.replace(" ", "\t", 1)
+    return text.encode("utf-8")
+
+
+def test_the_plain_obj_fast_path_reads_every_file_as_the_line_reader_does(monkeypatch):
+    """The numpy reading of plain OBJ files (jaxmesh._meshtext._plain_obj) against the line-by-line
+    reader on 600 generated files, irregular lines included: the same arrays, or the same error."""
+    from jaxmesh import _meshtext
+
+    def outcome(data):
+        try:
+            v, f, records, polys = _meshtext.read_obj(data)
+            return "ok", v.tobytes(), f.tobytes(), v.shape, f.shape, records, polys
+        except ValueError as err:
+            return "error", str(err)
+
+    fast_taken = 0
+    for seed in range(600):
+        data = _obj_variants(seed)
+        fast = outcome(data)
+        fast_taken += _meshtext._plain_obj(data) is not None
+        with monkeypatch.context() as m:
+            m.setattr(_meshtext, "_plain_obj", lambda data: None)
+            assert outcome(data) == fast, data
+    assert 100 < fast_taken < 600          # both paths were exercised
