@@ -58,8 +58,8 @@ def patch_inconsistency(graph: FaceGraph, normals: Float[Array, "*batch F 3"]) -
     Returns:
         H(P_j) per face, (*batch, F)."""
     ring = normals[..., graph.ring, :]                                   # (*b, F, K, 3)
-    # the pairs (a, b) with a <= b only (the differences are symmetric: the same maximum, in 55% of the
-    # work at K = 20); n_a · n_b written out by component: XLA fuses it into one loop (a batched
+    # the pairs (a, b) with a <= b only (the differences are symmetric: the same maximum, from 210 of the
+    # 400 products at K = 20); n_a · n_b written out by component: XLA fuses it into one loop (a batched
     # (K, 3) @ (3, K) matmul per face runs 2-3x slower on CPU)
     ia, ib = np.triu_indices(ring.shape[-2])
     left, right = ring[..., ia, :], ring[..., ib, :]                    # (*b, F, K(K+1)/2, 3)
