@@ -30,6 +30,7 @@ kept, the least recently used removed first.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import hashlib
 import inspect
@@ -92,11 +93,14 @@ def _read(path: Path):
     if data[:len(_MAGIC)] == _MAGIC and len(data) > head and hashlib.sha256(data[head:]).digest() == data[len(_MAGIC):head]:
         try:
             exported = jax.export.deserialize(bytearray(data[head:]))
-            os.utime(path)
-            return exported
         except Exception:   # written by another jax, or damaged past the digest
-            pass
-    path.unlink(missing_ok=True)
+            exported = None
+        if exported is not None:
+            with contextlib.suppress(OSError):   # recency for the eviction; a read-only store is fine
+                os.utime(path)
+            return exported
+    with contextlib.suppress(OSError):
+        path.unlink(missing_ok=True)
     return None
 
 

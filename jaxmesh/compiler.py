@@ -150,5 +150,10 @@ def enable_compilation_cache(path: str | os.PathLike | None = None, *,
     jax.config.update("jax_persistent_cache_min_compile_time_secs", float(min_compile_seconds))
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
     jax.config.update("jax_compilation_cache_max_size", int(max_bytes))
-    set_store(folder / EXPORTED_FOLDER)
+    try:
+        set_store(folder / EXPORTED_FOLDER)
+    except OSError as err:
+        set_store(None)
+        warnings.warn(f"the search's programs are not kept: {folder / EXPORTED_FOLDER}: {err.strerror or err}",
+                      UserWarning, stacklevel=2)
     return folder

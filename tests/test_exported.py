@@ -105,3 +105,13 @@ def test_the_store_keeps_at_most_its_limit(tmp_path, monkeypatch):
         assert len(list(tmp_path.glob("*.jaxexport"))) == 2
     finally:
         _exported.set_store(None)
+
+
+def test_a_cache_folder_that_cannot_hold_the_store_leaves_it_off(tmp_path, monkeypatch):
+    from jaxmesh import compiler
+
+    monkeypatch.setattr(jax.config, "update", lambda *args: None)   # JAX's own cache settings left alone
+    (tmp_path / compiler.EXPORTED_FOLDER).write_text("a file where the folder goes")
+    with pytest.warns(UserWarning, match="not kept"):
+        assert compiler.enable_compilation_cache(tmp_path) == tmp_path
+    assert _exported.store_path() is None
