@@ -16,8 +16,10 @@ A stored program is found by the SHA-256 of: the function's qualified name, the
 static arguments' ``repr``, the structure (tree definition) of the other arguments,
 each leaf's shape, dtype and weak type, the x64 setting, the platform, the jax and
 jaxlib versions, and the text of every module of this package (any change to the
-code makes new keys).  The functions taken must see arrays only through their
-arguments: a closed-over array would be baked into the stored program unkeyed.
+code makes new keys).  The functions taken are this package's own module-level
+functions (the key names a function by its qualified name and covers only this
+package's source), and must see arrays only through their arguments: a closed-over
+array would be baked into the stored program unkeyed.
 
 Files are written atomically, each with the SHA-256 of its payload, checked before
 ``jax.export.deserialize`` sees it; a file that fails the check, or does not
@@ -25,7 +27,7 @@ deserialise, is removed and the function is traced as without a store.  Inside a
 transformation (``jit``, ``vmap``, ``grad``) the function is traced with it, as ``jax.jit``'s are.  A function
 that cannot be exported (a host callback, an output that is not a tuple, list,
 dict or array) is traced from then on.  At most :data:`STORE_MAX_FILES` files are
-kept, the least recently used removed first.
+kept: past it, the least recently used are removed down to three quarters of it.
 """
 
 from __future__ import annotations
@@ -111,10 +113,14 @@ def _write(folder: Path, path: Path, payload: bytes) -> None:
         with os.fdopen(fd, "wb") as f:
             f.write(data)
         os.replace(tmp, path)
-        files = sorted(folder.glob(f"*{_SUFFIX}"), key=lambda p: p.stat().st_mtime)
-        for old in files[:max(len(files) - STORE_MAX_FILES, 0)]:
-            old.unlink(missing_ok=True)
-    except OSError:   # a full or read-only disk: the program is simply not kept
+        with os.scandir(folder) as entries:
+            names = [e.name for e in entries if e.name.endswith(_SUFFIX) and not e.name.startswith(".")]
+        if len(names) > STORE_MAX_FILES:   # down to three quarters, least recently used first out
+            files = sorted((folder / n for n in names), key=lambda p: p.stat().st_mtime)
+            for old in files[:len(files) - STORE_MAX_FILES * 3 // 4]:
+                if old != path:
+                    old.unlink(missing_ok=True)
+    except OSError:   # a full or read-only disk, a file another process removed: not kept, or kept longer
         pass
 
 

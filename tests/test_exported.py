@@ -95,14 +95,20 @@ def test_what_the_store_cannot_hold_is_traced_as_by_jit(tetra, store):
     np.testing.assert_array_equal(np.asarray(h(jnp.ones(3))), np.full(3, 2.0))
 
 
-def test_the_store_keeps_at_most_its_limit(tmp_path, monkeypatch):
-    monkeypatch.setattr(_exported, "STORE_MAX_FILES", 2)
+def test_the_store_keeps_at_most_its_limit_and_the_newest(tmp_path, monkeypatch):
+    monkeypatch.setattr(_exported, "STORE_MAX_FILES", 4)
     _exported.set_store(tmp_path)
     try:
         f = _exported.stored_jit(lambda x: x * 2)
-        for n in (1, 2, 3, 4):
+        counts = []
+        for n in range(1, 8):
             f(jnp.ones(n))
-        assert len(list(tmp_path.glob("*.jaxexport"))) == 2
+            counts.append(len(list(tmp_path.glob("*.jaxexport"))))
+        assert counts == [1, 2, 3, 4, 3, 4, 3]          # past 4, down to 3 (the newest among them)
+        traces: list = []
+        g = _exported.stored_jit(lambda x: traces.append(1) or x * 2)
+        g(jnp.ones(7))
+        assert traces == []                              # the newest program was kept
     finally:
         _exported.set_store(None)
 
