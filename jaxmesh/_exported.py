@@ -38,7 +38,6 @@ import hashlib
 import inspect
 import os
 import tempfile
-import threading
 from pathlib import Path
 
 import jax
@@ -50,7 +49,6 @@ STORE_MAX_FILES = 2000
 _MAGIC = b"jaxmesh-exported-1\n"
 _SUFFIX = ".jaxexport"
 _store: list[Path | None] = [None]
-_lock = threading.Lock()
 
 
 def set_store(path: str | os.PathLike | None) -> None:
@@ -156,9 +154,9 @@ class _StoredJit:
         return call(*leaves)
 
     def _program(self, folder: Path, statics: tuple, tree, specs: tuple, memo: tuple):
+        """The program for ``memo`` (statics, tree, avals, x64): from the store, else exported and stored."""
         platform = jax.default_backend()
-        key = repr((self._fun.__module__, self._fun.__qualname__, statics, str(tree),
-                    [(s.shape, str(s.dtype), s.weak_type) for s in specs], memo[-1], platform, _code_digest()))
+        key = repr((self._fun.__module__, self._fun.__qualname__, memo, platform, _code_digest()))
         path = folder / f"{hashlib.sha256(key.encode()).hexdigest()}{_SUFFIX}"
         exported = _read(path)
         if exported is None:
@@ -174,8 +172,7 @@ class _StoredJit:
                 return None
             _write(folder, path, bytes(payload))
         call = jax.jit(exported.call)
-        with _lock:
-            self._calls[memo] = call
+        self._calls[memo] = call    # one dict assignment: safe from several threads
         return call
 
     def __getattr__(self, name: str):

@@ -100,6 +100,16 @@ def det_adjugate_3x3(h: Float[Array, "... 3 3"]):
 PROBE_STREAM, RECORRUPTION_STREAM, PATCH_STREAM, HELD_OUT_STREAM = 1, 2, 3, 4
 
 
+def x64_context(enabled: bool = True):
+    """JAX's 64-bit setting, ``enabled``, for the duration of a ``with`` block, in this thread only
+    (JAX >= 0.7 ``jax.enable_x64``, else the older ``jax.experimental`` contexts)."""
+    enable = getattr(jax, "enable_x64", None)
+    if enable is None:   # pragma: no cover - older JAX
+        from jax.experimental import disable_x64, enable_x64
+        return enable_x64() if enabled else disable_x64()
+    return enable(enabled)
+
+
 def library_key(key, stream: int):
     """The key the library draws its own randomness from (SURE probes,
     recorruptions), given the user's ``key`` (an int seed or a key): folded with

@@ -24,6 +24,8 @@ from typing import TypeVar
 
 import jax
 
+from ._private import x64_context
+
 __all__ = ["concurrent_map", "worker_count"]
 
 T = TypeVar("T")
@@ -45,14 +47,6 @@ def worker_count() -> int:
         return os.cpu_count() or 1
 
 
-def _x64(enabled: bool):
-    enable = getattr(jax, "enable_x64", None)
-    if enable is None:   # pragma: no cover - older JAX
-        from jax.experimental import enable_x64, disable_x64
-        return enable_x64() if enabled else disable_x64()
-    return enable(enabled)
-
-
 def concurrent_map(fn: Callable[[T], R], items: Iterable[T]) -> list[R]:
     """``[fn(item) for item in items]``, the calls spread over :func:`worker_count` threads
     (module docstring); the first exception raised by a call is raised here."""
@@ -63,7 +57,7 @@ def concurrent_map(fn: Callable[[T], R], items: Iterable[T]) -> list[R]:
     x64, device = bool(jax.config.jax_enable_x64), jax.config.jax_default_device
 
     def call(item: T) -> R:
-        with _x64(x64), (jax.default_device(device) if device is not None else contextlib.nullcontext()):
+        with x64_context(x64), (jax.default_device(device) if device is not None else contextlib.nullcontext()):
             return fn(item)
 
     with ThreadPoolExecutor(workers, thread_name_prefix="jaxmesh-map") as pool:

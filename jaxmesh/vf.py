@@ -35,11 +35,11 @@ from __future__ import annotations
 import contextlib
 from typing import Literal
 
-import jax
 import numpy as np
 import scipy.sparse as sp
 
 from . import geometry, sparse
+from ._private import x64_context
 from .mesh import Mesh, build_topology
 
 __all__ = ["to_mesh", "cotmatrix", "massmatrix", "adjacency_matrix", "per_face_normals",
@@ -47,16 +47,6 @@ __all__ = ["to_mesh", "cotmatrix", "massmatrix", "adjacency_matrix", "per_face_n
 
 MASS_KINDS = ("voronoi", "barycentric")
 NORMAL_WEIGHTINGS = ("area", "angle", "uniform")
-
-
-def _x64():
-    """Float64 for the duration (JAX >= 0.7 `jax.enable_x64`, else the older
-    `jax.experimental.enable_x64`)."""
-    enable = getattr(jax, "enable_x64", None)
-    if enable is None:   # pragma: no cover - older JAX
-        from jax.experimental import enable_x64 as enable
-        return enable()
-    return enable(True)
 
 
 def to_mesh(V, F) -> Mesh:
@@ -74,7 +64,7 @@ def to_mesh(V, F) -> Mesh:
 
 @contextlib.contextmanager
 def _mesh64(V, F):
-    with _x64():
+    with x64_context():
         yield Mesh.from_arrays(np.asarray(V, dtype=np.float64), np.asarray(F), dtype=np.float64, warn=False)
 
 

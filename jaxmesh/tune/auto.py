@@ -273,9 +273,9 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
     clock.append(time.perf_counter())
     y = noisy.vertices
     auxes = {m: METHODS[m].prepare(noisy) for m in {c[0] for c in components}}
-    counted = {path.method for path in paths}
+    path_methods = _path_methods(paths)
     runs = concurrent_map(lambda c: jax.block_until_ready(run_setting(noisy, y, c[0], c[1], auxes[c[0]],
-                                                                      c[0] in counted)), components)
+                                                                      c[0] in path_methods)), components)
     out = jax.block_until_ready(sum(w * x for (_, _, w), x in zip(components, runs)))
     clock.append(time.perf_counter())
     seconds = dict(zip(("noise_law", "patches", "ranking", "choice"), np.diff(clock).round(3).tolist()))
@@ -284,6 +284,11 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
     return AutoResult(method, params, noisy.with_vertices(out), law["sigma"], law["estimated"], law["tangential"],
                       risk, noisy_risk, bool(risk < noisy_risk), table, components, law["law"], law["fraction"],
                       search.num_vertices, seconds, estimator)
+
+
+def _path_methods(paths: Sequence[SearchPath]) -> frozenset:
+    """The methods of the search paths: those run with their count traced (``run_setting(counted=True)``)."""
+    return frozenset(path.method for path in paths)
 
 
 def _tilts(noisy: Mesh, inputs, targets, candidates: Sequence[Candidate], auxes: dict, nu, ell,
@@ -326,7 +331,7 @@ def _rank(noisy: Mesh, core, ell, candidates, paths, s_vertex, s_t, draws, blend
     from ..denoise import METHODS
 
     y = noisy.vertices
-    methods = ({c.method for c in candidates} | {"guided_normal"} | {path.method for path in paths}
+    methods = ({c.method for c in candidates} | {"guided_normal"} | _path_methods(paths)
                | ({"impulse_repair"} if impulsive else set()))
     auxes = {m: METHODS[m].prepare(noisy) for m in methods}
     pilot = noisy.with_vertices(run_setting(noisy, y, "guided_normal", {}, auxes["guided_normal"]))
@@ -355,8 +360,7 @@ def _rank(noisy: Mesh, core, ell, candidates, paths, s_vertex, s_t, draws, blend
     if blend_draws and blend_size > 1 and len(rows) > 1:
         fresh = draw(blend_draws, BLEND_SALT)
         blended = [Candidate(*r[:2]) for r in rows]
-        counted = {path.method for path in paths}
-        gram = tilt_gram(np.stack(_tilts(noisy, *fresh[:2], blended, auxes, nu, ell, counted)))
+        gram = tilt_gram(np.stack(_tilts(noisy, *fresh[:2], blended, auxes, nu, ell, _path_methods(paths))))
         mix, total = best_mixture(gram, next(i for i, r in enumerate(rows) if r is table[0]), blend_size)
         if len(mix) > 1:
             components = tuple((rows[i][0], rows[i][1], w) for i, w in mix)

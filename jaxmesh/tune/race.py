@@ -151,7 +151,11 @@ def race(noisy: Mesh, candidates, paths, inputs, targets, nu, ell, auxes: dict, 
                 for i, path in enumerate(paths) for setting in path.settings]
     draws = len(inputs)
     first = draws if race_keep is None else 1
-    sums = concurrent_map(lambda e: _entry_sums(noisy, e, inputs[:first], targets[:first], nu, ell, auxes), entries)
+
+    def sums_on(indices, draws_of: slice) -> list:
+        return concurrent_map(lambda i: _entry_sums(noisy, entries[i], inputs[draws_of], targets[draws_of], nu, ell,
+                                                    auxes), indices)
+    sums = sums_on(range(len(entries)), slice(None, first))
     families = list(dict.fromkeys(e.family for e in entries))
     finished = set(range(len(entries)))
     if first < draws:
@@ -159,9 +163,7 @@ def race(noisy: Mesh, candidates, paths, inputs, targets, nu, ell, auxes: dict, 
                     for i in sorted((i for i, e in enumerate(entries) if e.family == family),
                                     key=lambda i: float(np.min(sums[i])))[:race_keep]}
         rest = sorted(finished)
-        more = concurrent_map(lambda i: _entry_sums(noisy, entries[i], inputs[first:], targets[first:], nu, ell,
-                                                    auxes), rest)
-        for i, extra in zip(rest, more):
+        for i, extra in zip(rest, sums_on(rest, slice(first, None))):
             sums[i] = sums[i] + extra
 
     def row(i: int) -> tuple:

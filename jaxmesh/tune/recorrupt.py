@@ -42,7 +42,6 @@ the fandisk at 0.7ℓ̄, so the chooser draws independently unless asked.
 
 from __future__ import annotations
 
-
 import jax
 import jax.numpy as jnp
 import numpy as np
