@@ -1,80 +1,62 @@
 """jaxmesh: differentiable triangle-mesh processing in JAX.
 
-The public names are re-exported here; each lives in a module of its own
-(see docs/development.md for the layout).  The core (the mesh, its files and geometry)
-is imported with the package; the feature subpackages (``denoise``, ``tune``,
-``compress``, ``hash``, ``stats``, ...) on first use, so ``import jaxmesh`` and the
-command line start without loading what they do not need.
+The public names are re-exported here; each lives in a module of its own (see
+docs/development.md for the layout).  Every name and subpackage is imported on first
+use (PEP 562), so ``import jaxmesh`` and the command line's ``--help`` start without
+loading JAX, and a command loads only what it needs.  One table, :data:`_NAMES`, says
+where each top-level name lives; ``__all__`` and ``dir(jaxmesh)`` are read from it.
 """
 
-import importlib
+from __future__ import annotations
 
-from . import geometry, topology
-from .geometry import (
-    bounding_box_diagonal,
-    corner_angles,
-    edge_lengths,
-    edge_vectors,
-    face_areas,
-    face_normals,
-    mean_edge_length,
-    vertex_areas,
-    vertex_normals,
-)
-from .io import MeshFileError, load, save
-from .mesh import Mesh, MeshWarning
-from .noise import add_impulsive_noise, add_noise
-from .topology import mesh_info
-from .transforms import normalize
+import importlib
+from typing import TYPE_CHECKING
 
 __version__ = "0.1.0"
 
-#: subpackages imported on first attribute access (PEP 562)
-_LAZY = ("batch", "compiler", "compress", "data", "dataset", "denoise", "geodesics", "hash", "intrinsic", "linalg", "metrics",
-         "operators", "sparse", "spectral", "stats", "tune", "vf")
+#: each top-level function and class -> the module that defines it
+_NAMES = {
+    "Mesh": "mesh", "MeshWarning": "mesh",
+    "MeshFileError": "io", "load": "io", "save": "io",
+    "add_noise": "noise", "add_impulsive_noise": "noise",
+    "normalize": "transforms",
+    "mesh_info": "topology",
+    **{name: "geometry" for name in (
+        "edge_vectors", "edge_lengths", "mean_edge_length", "face_areas", "face_normals", "corner_angles",
+        "vertex_normals", "vertex_areas", "bounding_box_diagonal")},
+}
+
+#: the public modules and subpackages, attributes of the package
+_MODULES = ("batch", "compiler", "compress", "data", "dataset", "denoise", "geodesics", "geometry", "graph", "hash",
+            "intrinsic", "io", "linalg", "mesh", "metrics", "noise", "operators", "render", "sparse", "spectral",
+            "stats", "topology", "transforms", "tune", "vf", "view")
+
+__all__ = [*_NAMES, *_MODULES]
 
 
 def __getattr__(name: str):
-    if name in _LAZY:
-        module = importlib.import_module(f".{name}", __name__)
-        globals()[name] = module
-        return module
-    raise AttributeError(f"module 'jaxmesh' has no attribute {name!r}")
+    if name in _MODULES:
+        value = importlib.import_module(f".{name}", __name__)
+    elif name in _NAMES:
+        value = getattr(importlib.import_module(f".{_NAMES[name]}", __name__), name)
+    else:
+        raise AttributeError(f"module 'jaxmesh' has no attribute {name!r}")
+    globals()[name] = value
+    return value
 
 
 def __dir__():
-    return sorted(set(globals()) | set(_LAZY))
+    return sorted(set(globals()) | set(__all__))
 
-__all__ = [
-    "Mesh",
-    "MeshWarning",
-    "MeshFileError",
-    "load",
-    "save",
-    "add_noise",
-    "add_impulsive_noise",
-    "normalize",
-    "mesh_info",
-    "edge_vectors",
-    "edge_lengths",
-    "mean_edge_length",
-    "face_areas",
-    "face_normals",
-    "corner_angles",
-    "vertex_normals",
-    "vertex_areas",
-    "bounding_box_diagonal",
-    "batch",
-    "compress",
-    "data",
-    "dataset",
-    "denoise",
-    "geometry",
-    "hash",
-    "metrics",
-    "operators",
-    "sparse",
-    "stats",
-    "topology",
-    "tune",
-]
+
+if TYPE_CHECKING:   # what static tools see; at run time every name comes through __getattr__
+    from . import (batch, compiler, compress, data, dataset, denoise, geodesics, geometry, graph, hash, intrinsic,
+                   io, linalg, mesh, metrics, noise, operators, render, sparse, spectral, stats, topology,
+                   transforms, tune, vf, view)
+    from .geometry import (bounding_box_diagonal, corner_angles, edge_lengths, edge_vectors, face_areas,
+                           face_normals, mean_edge_length, vertex_areas, vertex_normals)
+    from .io import MeshFileError, load, save
+    from .mesh import Mesh, MeshWarning
+    from .noise import add_impulsive_noise, add_noise
+    from .topology import mesh_info
+    from .transforms import normalize

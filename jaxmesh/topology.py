@@ -11,6 +11,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components as _cc
 
+from ._exported import stored_jit
 from .mesh import Mesh, zero_area_faces
 
 __all__ = [
@@ -209,6 +210,14 @@ def duplicate_vertices(mesh: Mesh) -> int:
     return int(len(v) - len(np.unique(v, axis=0)))
 
 
+@stored_jit
+def _scales(mesh: Mesh):
+    """(ℓ̄, bounding-box diagonal) in one compiled program (kept between processes)."""
+    from .geometry import bounding_box_diagonal, mean_edge_length
+
+    return mean_edge_length(mesh), bounding_box_diagonal(mesh)
+
+
 def mesh_info(mesh: Mesh) -> dict:
     """Everything ``jaxmesh info`` prints, as a JSON-ready dict.
 
@@ -217,8 +226,6 @@ def mesh_info(mesh: Mesh) -> dict:
 
     Returns:
         A JSON-ready dict: counts, boundary, components, χ, genus, manifoldness, orientation, mean edge length, box diagonal, degrees."""
-    from .geometry import bounding_box_diagonal, mean_edge_length
-
     if mesh.batch_shape:
         raise ValueError("mesh_info needs a single mesh, not a batch")
     counts = edge_face_counts(mesh)
@@ -229,6 +236,7 @@ def mesh_info(mesh: Mesh) -> dict:
     faces = np.asarray(mesh.faces)
     oriented = is_consistently_oriented(mesh)
     dup_faces = len(faces) - len(np.unique(np.sort(faces, axis=1), axis=0))
+    ell, diagonal = _scales(mesh)
     return {
         "vertices": mesh.num_vertices,
         "faces": mesh.num_faces,
@@ -243,8 +251,8 @@ def mesh_info(mesh: Mesh) -> dict:
         "non_manifold_edges": nm_edges,
         "non_manifold_vertices": nm_verts,
         "consistently_oriented": oriented,
-        "mean_edge_length": float(mean_edge_length(mesh)),
-        "bbox_diagonal": float(bounding_box_diagonal(mesh)),
+        "mean_edge_length": float(ell),
+        "bbox_diagonal": float(diagonal),
         "degree_min": int(deg.min()),
         "degree_max": int(deg.max()),
         "degree_mean": float(deg.mean()),

@@ -138,3 +138,33 @@ def test_modules_and_functions_stay_small():
                 too_long.append(f"{path.relative_to(ROOT)}:{node.lineno} {node.name}: "
                                 f"{node.end_lineno - node.lineno + 1} lines")
     assert too_long == []
+
+
+def test_the_package_and_the_command_lines_help_do_not_import_jax():
+    """``import jaxmesh`` and ``jaxmesh --help`` load no JAX (every name is lazy, and the
+    command line imports only the command it runs); each lazy name then resolves."""
+    import subprocess
+    import sys
+
+    code = ("import sys, jaxmesh, jaxmesh.cli; jaxmesh.cli.build_parser(()).format_help(); "
+            "assert 'jax' not in sys.modules and 'jaxmesh.mesh' not in sys.modules, sorted(sys.modules); "
+            "jaxmesh.cli.build_parser(('info',)); assert 'jaxmesh.topology' in sys.modules; "
+            "assert 'jaxmesh.denoise' not in sys.modules and 'jaxmesh.stats' not in sys.modules; "
+            "import jaxmesh.view; assert all(getattr(jaxmesh, n) is not None for n in jaxmesh.__all__)")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+
+
+def test_every_command_module_is_named_in_the_table():
+    from jaxmesh.cli import COMMANDS, build_parser
+
+    modules = {p.stem for p in (ROOT / "cli").glob("*.py") if not p.stem.startswith("_")}
+    assert modules == set(COMMANDS)
+    import argparse
+
+    parser = build_parser()            # every command's options and run function
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    for name in COMMANDS:
+        assert sub.choices[name].get_default("_run") is importlib.import_module(f"jaxmesh.cli.{name}").run
+    only = next(a for a in build_parser(("info",))._actions if isinstance(a, argparse._SubParsersAction))
+    assert only.choices["info"].get_default("_run") is not None and only.choices["hash"].get_default("_run") is None

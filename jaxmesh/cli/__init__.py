@@ -1,10 +1,11 @@
 """The ``jaxmesh`` command line (also ``python -m jaxmesh``).
 
-One module per command, each with ``HELP``, ``configure(parser)`` and
-``run(args) -> exit code``, listed in :data:`COMMANDS`; a new command is a new
-module and one line there.  Each command parses, makes one library call and
-prints.  Conventions, as for any Unix tool: results on stdout (``--json`` for
-machine output, one JSON object per line), diagnostics on stderr prefixed with
+One module per command, each with ``configure(parser)`` and ``run(args) -> exit code``,
+named with its one-line help in :data:`COMMANDS`; a new command is a new module and one
+line there.  Only the command being run is imported (``jaxmesh --help`` imports none, and
+not JAX).  Each command parses, makes one library call and prints.  Conventions, as for
+any Unix tool: results on stdout (``--json`` for machine output, one JSON object per
+line), diagnostics on stderr prefixed with
 ``jaxmesh:``, exit status 0 on success, 1 on a bad input or failed operation,
 2 on a usage error, 130 on Ctrl-C.  Output files are never overwritten without
 ``--force``.  Every command runs with 64-bit floats (files are never rounded), and
@@ -24,17 +25,43 @@ import os
 import sys
 import warnings
 
-from . import compress, convert, decompress, demo, denoise, hash, info, noise, stats, view
+import importlib
+
 from ._common import CLIError
 from ._run import run_command
 
 __all__ = ["main", "command", "build_parser", "COMMANDS", "CLIError"]
 
-COMMANDS = {module.__name__.rsplit(".", 1)[-1]: module
-            for module in (info, convert, noise, denoise, demo, stats, hash, compress, decompress, view)}
+#: each command (the module ``jaxmesh.cli.NAME``) and its one-line help, in ``--help``'s order
+COMMANDS = {
+    "info": "counts, topology and geometry summary of a mesh",
+    "convert": "convert between OBJ, PLY, OFF and STL, keeping vertex order",
+    "noise": "add Gaussian or impulsive noise to a mesh",
+    "denoise": "denoise a mesh with any registered method",
+    "demo": "denoise the shipped bunny and print the errors before and after",
+    "stats": "degree, assortativity, clustering, geodesic and spectral statistics (ch.5)",
+    "hash": "print a mesh's hash, or compare two meshes (thesis ch.4)",
+    "compress": "compress a mesh to a .jxm file (spectral geometry, lossless connectivity; ch.3)",
+    "decompress": "decode a .jxm file to a mesh file",
+    "view": "write one self-contained HTML page showing meshes side by side",
+}
 
 
-def build_parser() -> argparse.ArgumentParser:
+def _named_command(argv: list[str]) -> str | None:
+    """The command ``argv`` runs: its first word that is not an option (the top-level
+    options take no value)."""
+    return next((word for word in argv if not word.startswith("-")), None)
+
+
+def build_parser(commands: tuple[str, ...] | None = None) -> argparse.ArgumentParser:
+    """The argument parser, with the options of ``commands`` (every command's with None).
+
+    Arguments:
+        commands: the commands whose modules are imported and whose options are added
+            (the others are listed with their help only); None for all of them.
+
+    Returns:
+        The parser."""
     from .. import __version__
 
     parser = argparse.ArgumentParser(prog="jaxmesh", description="Differentiable triangle-mesh processing (JAX).")
@@ -43,10 +70,12 @@ def build_parser() -> argparse.ArgumentParser:
                         help="do not read or write the persistent compilation cache "
                              "(default folder: $JAXMESH_CACHE_DIR, else ~/.cache/jaxmesh/jax)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for name, module in COMMANDS.items():
-        p = sub.add_parser(name, help=module.HELP, description=module.HELP)
-        module.configure(p)
-        p.set_defaults(_run=module.run)
+    for name, help_line in COMMANDS.items():
+        p = sub.add_parser(name, help=help_line, description=help_line)
+        if commands is None or name in commands:
+            module = importlib.import_module(f".{name}", __name__)
+            module.configure(p)
+            p.set_defaults(_run=module.run)
     return parser
 
 
@@ -55,16 +84,18 @@ def _show_warning(message, category, filename, lineno, file=None, line=None):
 
 
 def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    name = _named_command(argv)
+    parser = build_parser((name,) if name else ())
+    args = parser.parse_args(argv)
+    if not getattr(args, "_run", None):
+        parser.print_help(sys.stderr)
+        return 2
     from ..compiler import prefer_fast_cpu_compiles
 
     prefer_fast_cpu_compiles()   # before JAX's backend starts: compiles ~2x faster on CPU
     import jax
 
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    if not getattr(args, "_run", None):
-        parser.print_help(sys.stderr)
-        return 2
     jax.config.update("jax_enable_x64", True)  # the one place: files are read and written unrounded
     # warnings are one stderr line each, whatever filters the caller (a test run with
     # -W error, an embedding program) installed; both are restored on return

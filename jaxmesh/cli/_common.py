@@ -11,7 +11,6 @@ from pathlib import Path
 from collections.abc import Callable
 
 from .. import data
-from ..io import load
 
 __all__ = ["CLIError", "io_arguments", "mesh_arguments", "load_input", "mesh_source", "check_output",
            "positional_output", "print_record", "with_caveats", "view_argument", "check_view",
@@ -46,12 +45,16 @@ def load_input(args):
         return f"sample:{args.sample}", data.load_sample(args.sample, dtype="float64")
     if not args.input:
         raise CLIError("no input mesh: name IN or use --sample NAME")
+    from ..io import load
+
     return args.input, load(args.input)
 
 
 def mesh_source(args) -> list[tuple[str, Callable]]:
     """(label, loader) for each mesh named by MESH arguments or --sample."""
     out = [(f"sample:{n}", lambda n=n: data.load_sample(n, dtype="float64")) for n in args.sample or []]
+    from ..io import load
+
     out += [(path, lambda path=path: load(path)) for path in args.mesh or []]
     if not out:
         raise CLIError("no mesh given: name a MESH file or --sample NAME "

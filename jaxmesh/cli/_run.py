@@ -7,8 +7,6 @@ import os
 import sys
 import threading
 
-from ..io import IN_PROGRESS
-
 __all__ = ["run_command"]
 
 
@@ -31,7 +29,8 @@ def _in_worker(run, args):
         while thread.is_alive():
             thread.join(0.1)
     except KeyboardInterrupt:
-        for tmp in list(IN_PROGRESS):
+        io = sys.modules.get("jaxmesh.io")     # the files being written, if any module writes
+        for tmp in list(io.IN_PROGRESS if io else ()):
             try:
                 os.unlink(tmp)
             except OSError:

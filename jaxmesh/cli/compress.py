@@ -11,8 +11,6 @@ import numpy as np
 
 from ._common import check_output, check_view, io_arguments, load_input, positional_output, view_argument, write_view
 
-HELP = "compress a mesh to a .jxm file (spectral geometry, lossless connectivity; ch.3)"
-
 
 def configure(p) -> None:
     io_arguments(p)

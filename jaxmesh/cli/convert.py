@@ -6,8 +6,6 @@ import sys
 
 from ..io import load, save
 
-HELP = "convert between OBJ, PLY, OFF and STL, keeping vertex order"
-
 
 def configure(p) -> None:
     p.add_argument("input", metavar="IN", help="mesh file to read")

@@ -11,8 +11,6 @@ from ..compress import decompress, inspect
 from ..io import MeshFileError, save
 from ._common import CLIError, check_output
 
-HELP = "decode a .jxm file to a mesh file"
-
 
 def configure(p) -> None:
     p.add_argument("input", metavar="IN", help="compressed mesh (.jxm; - for stdin)")

@@ -15,7 +15,6 @@ from ..transforms import normalize
 from ..metrics import error_summary as errors
 from ._common import check_output
 
-HELP = "denoise the shipped bunny and print the errors before and after"
 NAMES = {"clean": "bunny_clean.ply", "noisy": "bunny_noisy.ply", "kernel": "bunny_kernel.ply",
          "taubin": "bunny_taubin.ply", "auto": "bunny_auto.ply"}
 

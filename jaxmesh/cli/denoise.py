@@ -19,8 +19,6 @@ from ._dataset import dataset_arguments, run_dataset
 from ._denoise_report import progress_bar, report_auto, report_run
 from ._flags import add_parameter_flags, given_parameters, list_methods
 
-HELP = "denoise a mesh with any registered method"
-
 
 def configure(p) -> None:
     p.add_argument("paths", nargs="*", metavar="IN OUT", help="mesh to read and mesh to write (with --out-dir: "

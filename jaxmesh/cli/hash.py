@@ -11,8 +11,6 @@ from ..hash import THRESHOLDS, mesh_hash, robust_hash, similarity, verdict
 from ..io import load
 from ._common import CLIError, check_view, mesh_arguments, mesh_source, view_argument, write_view
 
-HELP = "print a mesh's hash, or compare two meshes (thesis ch.4)"
-
 
 def configure(p) -> None:
     mesh_arguments(p, "mesh file(s) to hash")

@@ -5,8 +5,6 @@ from __future__ import annotations
 from ..topology import mesh_info
 from ._common import mesh_arguments, mesh_source, print_record
 
-HELP = "counts, topology and geometry summary of a mesh"
-
 
 def configure(p) -> None:
     mesh_arguments(p, "mesh file(s): OBJ, PLY, OFF, STL")

@@ -10,7 +10,6 @@ from ..io import save
 from ..noise import IMPULSIVE_FRACTION, add_noise
 from ._common import CLIError, check_output, io_arguments, load_input, positional_output
 
-HELP = "add Gaussian or impulsive noise to a mesh"
 #: --model's choices
 MODELS = ("gaussian", "impulsive")
 

@@ -9,8 +9,6 @@ from ..io import write_bytes_atomic
 from ..stats import mesh_statistics, plot_statistics
 from ._common import CLIError, check_output, mesh_arguments, mesh_source, print_record
 
-HELP = "degree, assortativity, clustering, geodesic and spectral statistics (ch.5)"
-
 
 def configure(p) -> None:
     mesh_arguments(p)

@@ -9,8 +9,6 @@ from ..io import load
 from ..view import SHADINGS, vertex_distances, write_viewer
 from ._common import CLIError, check_output, mesh_source
 
-HELP = "write one self-contained HTML page showing meshes side by side"
-
 
 def configure(p) -> None:
     p.add_argument("mesh", nargs="*", metavar="MESH", help="mesh files to show, left to right")
