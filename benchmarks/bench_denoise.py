@@ -11,7 +11,10 @@
   (a fresh subprocess each; the increase over the loaded mesh is shown too);
 * batch throughput: 16 noisy bunnies in one batched call vs a loop of 16 calls.
 
---big adds the bunny subdivided twice (~556k vertices).  float32, CPU.
+--big adds the bunny subdivided twice (~556k vertices).  float32, CPU.  --xla-flag runs
+with the XLA setting the ``jaxmesh`` command uses
+(:func:`jaxmesh.compiler.prefer_fast_cpu_compiles`); Open3D's row is left out, with a
+note, where Open3D is not installed (``pip install '.[bench]'``).
 Not part of the test suite: numbers depend on the machine; compare ratios.
 """
 
@@ -19,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import resource
 import statistics
 import subprocess
@@ -85,9 +89,7 @@ def peak_memory_child(big: bool) -> None:
     print(json.dumps({"peak_mib": peak / 1024, "extra_mib": (peak - base) / 1024}))
 
 
-def bench(mesh: jaxmesh.Mesh, label: str, repeat: int) -> dict:
-    import open3d as o3d
-
+def bench(mesh: jaxmesh.Mesh, label: str, repeat: int, flag: bool) -> dict:
     noisy = jaxmesh.add_noise(mesh, 0.3, 0)
     v, f = np.array(noisy.vertices, np.float64), np.array(noisy.faces, np.int32)
     res = {"mesh": label, "V": mesh.num_vertices}
@@ -95,11 +97,20 @@ def bench(mesh: jaxmesh.Mesh, label: str, repeat: int) -> dict:
     l10 = jax.jit(lambda m: laplacian_smoothing(m, 0.5, 10))
     jax.block_until_ready(k10(noisy).vertices)
     jax.block_until_ready(l10(noisy).vertices)
-    res["jaxmesh kernel"] = median_time(lambda: jax.block_until_ready(k10(noisy).vertices), repeat) / 10
-    res["jaxmesh laplacian"] = median_time(lambda: jax.block_until_ready(l10(noisy).vertices), repeat) / 10
-    o3 = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(v), o3d.utility.Vector3iVector(f))
-    res["Open3D filter_smooth_laplacian"] = median_time(
-        lambda: o3.filter_smooth_laplacian(number_of_iterations=10, lambda_filter=0.5), repeat) / 10
+    # the two flows alternate, so that a change of the machine's speed reaches both
+    kernel, laplacian = [], []
+    for _ in range(repeat):
+        kernel.append(median_time(lambda: jax.block_until_ready(k10(noisy).vertices), 1) / 10)
+        laplacian.append(median_time(lambda: jax.block_until_ready(l10(noisy).vertices), 1) / 10)
+    res["jaxmesh kernel"], res["jaxmesh laplacian"] = statistics.median(kernel), statistics.median(laplacian)
+    try:
+        import open3d as o3d
+    except ImportError:
+        res["Open3D filter_smooth_laplacian"] = float("nan")
+    else:
+        o3 = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(v), o3d.utility.Vector3iVector(f))
+        res["Open3D filter_smooth_laplacian"] = median_time(
+            lambda: o3.filter_smooth_laplacian(number_of_iterations=10, lambda_filter=0.5), repeat) / 10
 
     def tm():
         m = trimesh.Trimesh(v.copy(), f, process=False)
@@ -117,7 +128,8 @@ def bench(mesh: jaxmesh.Mesh, label: str, repeat: int) -> dict:
     first = time.perf_counter() - t
     warm = median_time(lambda: jax.block_until_ready(k5(noisy, 0.5).vertices), repeat)
     res["compile_s"] = first - warm
-    out = subprocess.run([sys.executable, __file__, "--memory-child"] + (["--big"] if label != "bunny" else []),
+    child = ["--memory-child"] + (["--big"] if label != "bunny" else []) + (["--xla-flag"] if flag else [])
+    out = subprocess.run([sys.executable, __file__, *child],
                          capture_output=True, text=True, check=True)
     res["memory"] = json.loads(out.stdout.strip().splitlines()[-1])
     return res
@@ -141,20 +153,31 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--big", action="store_true", help="also the bunny subdivided twice (~556k vertices)")
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--xla-flag", action="store_true",
+                    help="the jaxmesh command's XLA setting (jaxmesh.compiler.prefer_fast_cpu_compiles)")
     ap.add_argument("--memory-child", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.xla_flag:
+        from jaxmesh.compiler import prefer_fast_cpu_compiles
+
+        prefer_fast_cpu_compiles()       # before the first computation starts the backend
     if args.memory_child:
         return peak_memory_child(args.big)
-    print(f"backend {jax.default_backend()}, {jax.device_count()} device(s), float32")
-    rows = [bench(load_mesh(False), "bunny", args.repeat)]
+    print(f"backend {jax.default_backend()}, {jax.device_count()} device(s), float32, "
+          f"XLA flags {os.environ.get('XLA_FLAGS', '(defaults)')!r}")
+    rows = [bench(load_mesh(False), "bunny", args.repeat, args.xla_flag)]
     if args.big:
-        rows.append(bench(load_mesh(True), "bunny x2 subdivided", args.repeat))
+        rows.append(bench(load_mesh(True), "bunny x2 subdivided", args.repeat, args.xla_flag))
     for r in rows:
         k = r["jaxmesh kernel"]
         print(f"\n{r['mesh']} (V={r['V']}): seconds per iteration, and peer / jaxmesh kernel")
         for name in ("jaxmesh kernel", "jaxmesh laplacian", "Open3D filter_smooth_laplacian",
                      "trimesh filter_laplacian", "numpy kernel"):
             print(f"  {name:32s} {r[name] * 1e3:9.2f} ms   {r[name] / k:6.2f}x")
+        print(f"  kernel flow / umbrella (Laplacian) flow, per iteration: "
+              f"{r['jaxmesh kernel'] / r['jaxmesh laplacian']:.2f}x")
+        if r["Open3D filter_smooth_laplacian"] != r["Open3D filter_smooth_laplacian"]:
+            print("  (Open3D is not installed: its row is NaN)")
         print(f"  jaxmesh laplacian vs trimesh laplacian: trimesh / jaxmesh = "
               f"{r['trimesh filter_laplacian'] / r['jaxmesh laplacian']:.2f}x")
         print(f"  compile time, 5-iteration kernel flow: {r['compile_s']:.2f} s")

@@ -109,7 +109,8 @@ def _kernel_parts(mesh: Mesh, x: Float[Array, "*batch V 3"], lam):
     det, co = _symmetric_adjugate(h)
     det = jnp.maximum(det, jnp.finfo(x.dtype).tiny)
     norm = (2 * jnp.pi) ** -1.5 * jax.lax.rsqrt(det)
-    q = _quadratic(co[..., mesh.src, :], delta) / det[..., mesh.src]
+    inverse = co / det[..., None]                      # H_i^{-1}, per vertex: one 6-column gather below
+    q = _quadratic(inverse[..., mesh.src, :], delta)
     return norm, jnp.exp(-0.5 * q), delta
 
 
@@ -155,12 +156,15 @@ def kernel_step(
         kappa = norm[..., mesh.src] * p
         return x + s * segment_sum_rows(kappa[..., None] * diff, mesh.src, mesh.num_vertices)
     if variant == "random_walk":
-        pull = segment_sum_rows(p[..., None] * diff, mesh.src, mesh.num_vertices)
+        # Σ_j p_ij δ_ij and Σ_j p_ij in one pass over the edges (4 columns)
+        sums = segment_sum_rows(jnp.concatenate([p[..., None] * diff, p[..., None]], axis=-1), mesh.src,
+                                mesh.num_vertices)
+        pull = sums[..., :3]
         # step_i = norm_i * pull_i / d_i; with the safeguard norm_i * pull_i / max(d_i, norm_i sum_j p_ij),
         # written as pull_i / max(d_i / norm_i, sum_j p_ij) so that a huge norm_i cannot overflow.
         den = d / norm
         if safeguard:
-            den = jnp.maximum(den, segment_sum_scalars(p, mesh.src, mesh.num_vertices))
+            den = jnp.maximum(den, sums[..., 3])
         return x + safe_divide(pull, den[..., None])
     raise ValueError(f"variant must be one of {VARIANTS}, got {variant!r}")
 

@@ -269,26 +269,7 @@ def test_ctrl_c_stops_a_long_denoise_within_seconds(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
-def test_library_denoise_is_interruptible_between_chunks():
-    """The eager loop runs in compiled chunks; a KeyboardInterrupt raised by a
-    signal lands between two of them."""
-    import threading
-
-    mesh = jaxmesh.data.load_sample("bunny", dtype="float64")
-    previous = signal.signal(signal.SIGINT, signal.default_int_handler)  # ignored in background jobs
-    timer = threading.Timer(1.0, lambda: os.kill(os.getpid(), signal.SIGINT))  # lands during the compile
-    timer.start()
-    start = time.perf_counter()
-    try:
-        with pytest.raises(KeyboardInterrupt):
-            METHODS["kernel"](mesh, iterations=100000)
-    finally:
-        timer.cancel()
-        signal.signal(signal.SIGINT, previous)
-    assert time.perf_counter() - start < 30
-
-
-def test_chunked_eager_loop_equals_one_compiled_loop(tetra):
+def test_the_eager_loop_is_the_compiled_loop(tetra):
     import jax
 
     with warnings.catch_warnings():
@@ -296,10 +277,9 @@ def test_chunked_eager_loop_equals_one_compiled_loop(tetra):
         eager = METHODS["taubin"](tetra, iterations=37).vertices
         jitted = jax.jit(lambda v: METHODS["taubin"](tetra.with_vertices(v), iterations=37).vertices)(tetra.vertices)
         one_less = METHODS["taubin"](tetra, iterations=36).vertices
-    # the same steps in the same order; two compiled programs may round the last bit
-    # differently (XLA's fusion emitters do), while one step more or less moves the
-    # vertices (here 4.9e-10: the tetrahedron is nearly collapsed) far more than that (checked)
-    np.testing.assert_allclose(np.asarray(eager), np.asarray(jitted), rtol=0, atol=1e-14)
+    # one fori_loop either way: the same program, so the same bits; one step more or
+    # less moves the vertices (here 4.9e-10: the tetrahedron is nearly collapsed)
+    np.testing.assert_array_equal(np.asarray(eager), np.asarray(jitted))
     assert np.max(np.abs(np.asarray(one_less) - np.asarray(jitted))) > 1e-11
 
 

@@ -1,0 +1,96 @@
+"""Command-line latency: every ``jaxmesh`` command on a small mesh, cold and warm, in one run.
+
+    .venv/bin/python benchmarks/bench_cli.py [--mesh spot] [--repeat 3] [--commands info,hash]
+
+Each command runs as a user types it (a fresh process of the installed ``jaxmesh``
+executable), first with an empty compilation cache (``JAXMESH_CACHE_DIR`` a new empty
+folder: "cold"), then ``--repeat`` more times with the cache that run filled ("warm",
+the median reported).  Two floors are measured the same way: a bare ``python -c pass``
+and ``python -c "import jax"`` (every computing command imports JAX).  Inputs: the
+shared mesh (``../shared/meshes/``, default spot, 2,930 vertices), a noisy copy of it and
+its ``.jxm`` file, made once before the timings.  Not part of the test suite: numbers
+depend on the machine; compare the rows of one run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+SHARED = Path(__file__).resolve().parents[2] / "shared" / "meshes"
+BIN = Path(sys.executable).parent
+
+
+def commands(mesh: Path, tmp: Path) -> dict[str, list[str]]:
+    """Each command's words (``jaxmesh`` left out); outputs go to ``tmp``, overwritten."""
+    noisy, packed = tmp / "noisy.ply", tmp / "mesh.jxm"
+    return {
+        "--help": ["--help"],
+        "info": ["info", str(mesh)],
+        "convert": ["convert", str(mesh), str(tmp / "out.obj"), "--force"],
+        "noise": ["noise", str(mesh), str(tmp / "out-noise.ply"), "--force"],
+        "denoise --method taubin": ["denoise", str(noisy), str(tmp / "out-t.ply"), "--method", "taubin", "--force"],
+        "denoise --method kernel": ["denoise", str(noisy), str(tmp / "out-k.ply"), "--method", "kernel", "--force"],
+        "hash": ["hash", str(mesh)],
+        "compress": ["compress", str(mesh), str(tmp / "out.jxm"), "--force"],
+        "decompress": ["decompress", str(packed), str(tmp / "out-d.ply"), "--force"],
+        "view": ["view", str(mesh), "-o", str(tmp / "out.html"), "--force"],
+        "stats": ["stats", str(mesh)],
+    }
+
+
+def seconds(argv: list[str], cache: Path) -> float:
+    env = {**os.environ, "JAXMESH_CACHE_DIR": str(cache)}
+    start = time.perf_counter()
+    done = subprocess.run(argv, env=env, capture_output=True, text=True)
+    took = time.perf_counter() - start
+    if done.returncode != 0:
+        raise SystemExit(f"{' '.join(argv)} failed ({done.returncode}):\n{done.stderr[-2000:]}")
+    return took
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--mesh", default="spot", help="a mesh of ../shared/meshes (its name without .ply)")
+    ap.add_argument("--repeat", type=int, default=3, help="warm runs per command (median)")
+    ap.add_argument("--commands", default="", help="comma-separated subset of the rows (default: all)")
+    args = ap.parse_args()
+    mesh = SHARED / f"{args.mesh}.ply"
+    if not mesh.is_file():
+        raise SystemExit(f"{mesh}: not found (the shared meshes sit beside the repository)")
+    jaxmesh = shutil.which("jaxmesh", path=str(BIN)) or "jaxmesh"
+    python = sys.executable
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        setup = tmp / "setup-cache"
+        seconds([jaxmesh, "noise", str(mesh), str(tmp / "noisy.ply"), "--sigma", "0.3"], setup)
+        seconds([jaxmesh, "compress", str(mesh), str(tmp / "mesh.jxm")], setup)
+        table = {"python -c pass (floor)": [python, "-c", "pass"],
+                 "python -c 'import jax' (floor)": [python, "-c", "import jax"],
+                 **{f"jaxmesh {name}": [jaxmesh, *words] for name, words in commands(mesh, tmp).items()}}
+        wanted = {w.strip() for w in args.commands.split(",") if w.strip()}
+        for name, argv in table.items():
+            if wanted and name.removeprefix("jaxmesh ") not in wanted and "floor" not in name:
+                continue
+            cache = tmp / f"cache-{len(rows)}"
+            cold = seconds(argv, cache)
+            warm = statistics.median(seconds(argv, cache) for _ in range(args.repeat))
+            rows.append((name, cold, warm))
+            print(f"{name:32s} cold {cold:6.2f} s   warm {warm:6.2f} s", file=sys.stderr)
+    print(f"\n{args.mesh}: each command a fresh process; warm = median of {args.repeat}\n")
+    print("| command | empty cache | warm cache |")
+    print("|---|---|---|")
+    for name, cold, warm in rows:
+        print(f"| `{name}` | {cold:.2f} s | {warm:.2f} s |")
+
+
+if __name__ == "__main__":
+    main()
