@@ -8,7 +8,6 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .._threads import concurrent_map
 from ..mesh import Mesh
 from ._graph import graph_view
 from .clustering import clustering, clustering_by_degree, thesis_clustering
@@ -58,21 +57,13 @@ def mesh_statistics(mesh: Mesh, sources: int = 200, seed: int = 0, knn: int = 8,
     ck, c_k = clustering_by_degree(graph, c)
     _, ct_k = clustering_by_degree(graph, ct)
     src = sample_sources(mesh, sources, seed)
-    # the geodesics and the spectra are independent: they run side by side (the host
-    # solves, eigensolvers and XLA's compiles release the GIL), each as in a plain loop
-    say(", ".join(f"{g} geodesics" for g in geodesics) + f" from {len(src)} sources; Laplacian spectra")
-    tasks = [*(("geodesics", g) for g in geodesics), ("spectrum", "combinatorial"), ("spectrum", "normalized")]
-    tasks.sort(key=lambda task: task[1] != "heat")          # the longest first
-
-    def run(task):
-        what, name = task
-        if what == "spectrum":
-            return laplacian_spectrum(mesh, name, spectrum_k)
-        return _finite(heat_geodesics(mesh, src) if name == "heat" else graph_distances(mesh, src, name, knn), src)
-
-    done = dict(zip(tasks, concurrent_map(run, tasks)))
-    dist = {g: done["geodesics", g] for g in geodesics}
-    spec = {kind: done["spectrum", kind] for kind in ("combinatorial", "normalized")}
+    dist = {}
+    for g in geodesics:
+        say(f"{g} geodesics from {len(src)} sources")
+        d = heat_geodesics(mesh, src) if g == "heat" else graph_distances(mesh, src, g, knn)
+        dist[g] = _finite(d, src)
+    say("Laplacian spectra")
+    spec = {kind: laplacian_spectrum(mesh, kind, spectrum_k) for kind in ("combinatorial", "normalized")}
     d = graph.degree
     connected = d > 0
     differ = connected & ~np.isclose(c, np.nan_to_num(ct, nan=-1))
