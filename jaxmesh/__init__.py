@@ -49,14 +49,48 @@ def __dir__():
     return sorted(set(globals()) | set(__all__))
 
 
-if TYPE_CHECKING:   # what static tools see; at run time every name comes through __getattr__
-    from . import (batch, compiler, compress, data, dataset, denoise, geodesics, geometry, graph, hash, intrinsic,
-                   io, linalg, mesh, metrics, noise, operators, render, sparse, spectral, stats, topology,
-                   transforms, tune, vf, view)
-    from .geometry import (bounding_box_diagonal, corner_angles, edge_lengths, edge_vectors, face_areas,
-                           face_normals, mean_edge_length, vertex_areas, vertex_normals)
-    from .io import MeshFileError, load, save
-    from .mesh import Mesh, MeshWarning
-    from .noise import add_impulsive_noise, add_noise
-    from .topology import mesh_info
-    from .transforms import normalize
+if TYPE_CHECKING:   # what static tools see (explicit re-exports); at run time every name comes through __getattr__
+    from . import batch as batch
+    from . import compiler as compiler
+    from . import compress as compress
+    from . import data as data
+    from . import dataset as dataset
+    from . import denoise as denoise
+    from . import geodesics as geodesics
+    from . import geometry as geometry
+    from . import graph as graph
+    from . import hash as hash
+    from . import intrinsic as intrinsic
+    from . import io as io
+    from . import linalg as linalg
+    from . import mesh as mesh
+    from . import metrics as metrics
+    from . import noise as noise
+    from . import operators as operators
+    from . import render as render
+    from . import sparse as sparse
+    from . import spectral as spectral
+    from . import stats as stats
+    from . import topology as topology
+    from . import transforms as transforms
+    from . import tune as tune
+    from . import vf as vf
+    from . import view as view
+    from .geometry import bounding_box_diagonal as bounding_box_diagonal
+    from .geometry import corner_angles as corner_angles
+    from .geometry import edge_lengths as edge_lengths
+    from .geometry import edge_vectors as edge_vectors
+    from .geometry import face_areas as face_areas
+    from .geometry import face_normals as face_normals
+    from .geometry import mean_edge_length as mean_edge_length
+    from .geometry import vertex_areas as vertex_areas
+    from .geometry import vertex_normals as vertex_normals
+    from .io import MeshFileError as MeshFileError
+    from .io import load as load
+    from .io import save as save
+    from .mesh import Mesh as Mesh
+    from .mesh import MeshWarning as MeshWarning
+    from .noise import add_impulsive_noise as add_impulsive_noise
+    from .noise import add_noise as add_noise
+    from .topology import mesh_info as mesh_info
+    from .transforms import normalize as normalize
