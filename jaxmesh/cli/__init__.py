@@ -5,12 +5,11 @@ named with its one-line help in :data:`COMMANDS`; a new command is a new module 
 line there.  Only the command being run is imported (``jaxmesh --help`` imports none, and
 not JAX).  Each command parses, makes one library call and prints.  Conventions, as for
 any Unix tool: results on stdout (``--json`` for machine output, one JSON object per
-line), diagnostics on stderr prefixed with
-``jaxmesh:``, exit status 0 on success, 1 on a bad input or failed operation,
-2 on a usage error, 130 on Ctrl-C.  Output files are never overwritten without
-``--force``.  Every command runs with 64-bit floats (files are never rounded), and
-with :func:`jaxmesh.compiler.prefer_fast_cpu_compiles`'s XLA setting unless
-``JAXMESH_XLA_DEFAULTS=1``.  Compiled programs are kept between runs in JAX's
+line), diagnostics on stderr prefixed with ``jaxmesh:``, exit status 0 on success, 1 on
+a bad input or failed operation, 2 on a usage error, 130 on Ctrl-C.  Output files are
+never overwritten without ``--force``.  Every command runs with 64-bit floats (files are
+never rounded), and with :func:`jaxmesh.compiler.prefer_fast_cpu_compiles`'s XLA setting
+unless ``JAXMESH_XLA_DEFAULTS=1``.  Compiled programs are kept between runs in JAX's
 persistent compilation cache (:func:`jaxmesh.compiler.enable_compilation_cache`;
 ``--no-cache`` or ``JAXMESH_CACHE_DIR=off`` for none).  The executable
 (:func:`command`) exits as soon as its output is flushed, without the interpreter's
