@@ -138,6 +138,45 @@ def test_face_graph_matches_brute_force(sphere):
         assert sorted(pe[j][pm[j]].tolist()) == want
 
 
+def _tier_cost(counts, widths, per_tier):
+    """Pairs computed when faces of ring size c go to the narrowest width >= c, plus a cost per tier."""
+    return per_tier * len(widths) + sum(w * (w + 1) / 2 for c in counts for w in [min(w for w in widths if w >= c)])
+
+
+def test_ring_tiers_are_the_cheapest_split_and_cover_every_face():
+    """The widths are the least-cost ones over every increasing tuple of widths 1..K (not only
+    the sizes present), and the tiers of a UV sphere (poles of valence 24 among rings of ~13)
+    partition its faces, each ring cut to a width that keeps it whole."""
+    from jaxmesh.denoise import RING_TIERS, ring_tiers
+    from jaxmesh.denoise.face_graph import _TIER_COST
+
+    rng = np.random.default_rng(0)
+    for counts in ([13] * 900 + [29] * 3, rng.integers(9, 20, 500).tolist() + [41] * 20, [7] * 10):
+        top = max(counts)
+        options = [(*inner, top) for t in range(RING_TIERS) for inner in itertools.combinations(range(1, top), t)]
+        best = min(_tier_cost(counts, w, _TIER_COST) for w in options)
+        got = ring_tiers(np.asarray(counts))
+        assert got == sorted(got) and got[-1] == top and len(got) <= RING_TIERS
+        assert _tier_cost(counts, got, _TIER_COST) == best
+    uv = trimesh.creation.uv_sphere(count=[24, 24])
+    mesh = jaxmesh.Mesh.from_arrays(uv.vertices, uv.faces)
+    g = face_graph(mesh)
+    assert len(g.tiers) > 1
+    faces = np.concatenate([np.asarray(t.faces) for t in g.tiers])
+    assert sorted(faces.tolist()) == list(range(mesh.num_faces))
+    np.testing.assert_array_equal(faces[np.asarray(g.tier_order)], np.arange(mesh.num_faces))
+    ring, mask = np.asarray(g.ring), np.asarray(g.ring_mask)
+    for t in g.tiers:
+        f, k = np.asarray(t.faces), t.ring.shape[1]
+        assert not mask[f, k:].any()
+        np.testing.assert_array_equal(np.asarray(t.ring), ring[f, :k])
+        np.testing.assert_array_equal(np.asarray(t.ring_mask), mask[f, :k])
+    n = np.asarray(jaxmesh.geometry.face_normals(mesh)) + 0.1 * rng.standard_normal((mesh.num_faces, 3))
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    np.testing.assert_allclose(patch_inconsistency(g, jnp.asarray(n)), np_inconsistency(np.asarray(mesh.faces), n,
+                               np_rings(np.asarray(mesh.faces))), rtol=1e-10, atol=1e-12)
+
+
 def test_face_graph_needs_the_host(sphere):
     with pytest.raises(ValueError, match="outside jit and pass the result as graph="):
         jax.jit(lambda m: guided_normal_filtering(m).vertices)(sphere)

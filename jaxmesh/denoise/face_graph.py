@@ -12,6 +12,14 @@ them) need, for every face f:
 and, for every edge with exactly two faces, those faces and the two vertices
 opposite the edge (the edge-based operator of L0 denoising).
 
+The rings are padded to the widest one, K; on meshes with a few high-valence
+vertices K is two to three times the mean ring.  What is quadratic in the ring
+(the largest normal difference within each patch, :mod:`.guided`) therefore runs
+on the rings split into **tiers** (:class:`RingTier`): each tier holds the faces
+whose rings fit its width k_t, with their rings cut to k_t.  The widths minimise
+Σ_t |tier t| · k_t(k_t + 1)/2, the pairs computed, over at most ``RING_TIERS``
+tiers (:func:`ring_tiers`).
+
 All of this depends on the connectivity only, so :func:`face_graph` builds it
 with numpy/scipy once per mesh, as padded integer arrays with masks (the
 jittable form); pass the result as ``graph=`` to call a method under ``jit``.
@@ -21,6 +29,7 @@ the edge arrays.
 
 from __future__ import annotations
 
+import itertools
 from typing import NamedTuple
 
 import jax
@@ -32,7 +41,21 @@ from jaxtyping import Array, Bool, Float, Int
 from .._private import lift, safe_divide, safe_norm
 from ..mesh import Mesh, to_device
 
-__all__ = ["FaceGraph", "face_graph", "face_centroids", "centroid_spacing"]
+__all__ = ["FaceGraph", "RingTier", "RING_TIERS", "face_graph", "ring_tiers", "face_centroids", "centroid_spacing"]
+
+#: the most tiers the rings are split into (module docstring)
+RING_TIERS = 3
+#: the cost of one more tier, in pairs (a tier is one more loop over its faces)
+_TIER_COST = 4096
+
+
+class RingTier(NamedTuple):
+    """The faces whose vertex rings hold at most k entries: ``faces`` (W,), and their ``ring``
+    and ``ring_mask`` cut to width k, (W, k)."""
+
+    faces: Int[Array, " W"]
+    ring: Int[Array, "W k"]
+    ring_mask: Bool[Array, "W k"]
 
 
 class FaceGraph(NamedTuple):
@@ -44,7 +67,9 @@ class FaceGraph(NamedTuple):
     * ``edge_faces`` (E, 2), ``edge_apex`` (E, 2), ``edge_mask`` (E,): for each
       mesh edge (``mesh.edges`` order), its two faces and the vertex of each
       face opposite the edge; ``edge_mask`` is False for boundary and
-      non-manifold edges.
+      non-manifold edges;
+    * ``tiers``: the rings split by width (:class:`RingTier`, module docstring),
+      ``tier_order`` (F,): each face's position in the tiers' faces, concatenated.
     """
 
     ring: Int[Array, "F K"]
@@ -54,6 +79,8 @@ class FaceGraph(NamedTuple):
     edge_faces: Int[Array, "E 2"]
     edge_apex: Int[Array, "E 2"]
     edge_mask: Bool[Array, " E"]
+    tiers: tuple[RingTier, ...]
+    tier_order: Int[Array, " F"]
 
 
 def _padded_rows(mat: sp.csr_matrix, fill: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -71,6 +98,46 @@ def _padded_rows(mat: sp.csr_matrix, fill: np.ndarray) -> tuple[np.ndarray, np.n
     index[row, col] = mat.indices
     mask[row, col] = True
     return index, mask
+
+
+def ring_tiers(counts: np.ndarray, most: int = RING_TIERS) -> list[int]:
+    """The tiers' widths k_1 < … < k_T (T ≤ ``most``, k_T the widest ring) minimising
+    Σ_t n_t · k_t(k_t + 1)/2 + T · c, n_t the faces whose ring size lies in (k_{t−1}, k_t]
+    and c the cost of a tier (module docstring).  Exhaustive over the ring sizes present.
+
+    Arguments:
+        counts: each face's ring size, (F,) (at least 1).
+        most: the most tiers.
+
+    Returns:
+        The widths, increasing."""
+    sizes, freq = np.unique(np.asarray(counts, np.int64), return_counts=True)
+    if sizes.size == 0:
+        return [1]
+    below = np.concatenate([[0], np.cumsum(freq)])           # faces with size < sizes[i]: below[i]
+
+    def cost(widths) -> float:
+        total, start = len(widths) * _TIER_COST, 0
+        for i in widths:                                       # widths as indices into sizes
+            total += (below[i + 1] - below[start]) * sizes[i] * (sizes[i] + 1) / 2
+            start = i + 1
+        return total
+    last = sizes.size - 1
+    options = [(*inner, last) for t in range(most) for inner in itertools.combinations(range(last), t)]
+    return [int(sizes[i]) for i in min(options, key=cost)]
+
+
+def _tiers(ring: np.ndarray, ring_mask: np.ndarray) -> tuple[list[tuple], np.ndarray]:
+    """(faces, ring, mask) of each tier (:func:`ring_tiers`) and each face's position in their concatenation."""
+    counts = ring_mask.sum(axis=1)
+    groups, lower = [], 0
+    for k in ring_tiers(counts):
+        faces = np.flatnonzero((counts > lower) & (counts <= k))
+        groups.append((faces, ring[faces, :k], ring_mask[faces, :k]))
+        lower = k
+    order = np.empty(len(ring), np.int64)
+    order[np.concatenate([g[0] for g in groups])] = np.arange(len(ring))
+    return groups, order
 
 
 def _host_arrays(mesh: Mesh) -> tuple[np.ndarray, np.ndarray, int]:
@@ -127,8 +194,10 @@ def face_graph(mesh: Mesh) -> FaceGraph:
     patch_edges, patch_edge_mask = _padded_rows(both, fill)
 
     as32 = lambda a: to_device(np.ascontiguousarray(a, dtype=np.int32))  # noqa: E731
+    groups, order = _tiers(ring, ring_mask)
+    tiers = tuple(RingTier(as32(f), as32(r), to_device(np.ascontiguousarray(m))) for f, r, m in groups)
     return FaceGraph(as32(ring), to_device(ring_mask), as32(patch_edges), to_device(patch_edge_mask),
-                     as32(edge_faces), as32(edge_apex), to_device(np.asarray(interior)))
+                     as32(edge_faces), as32(edge_apex), to_device(np.asarray(interior)), tiers, as32(order))
 
 
 def face_centroids(mesh: Mesh) -> Float[Array, "*batch F 3"]:

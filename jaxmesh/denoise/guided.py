@@ -41,11 +41,24 @@ from jaxtyping import Array, Float, Int
 from .._private import safe_normalize
 from ..mesh import Mesh
 from .bilateral_normal import joint_bilateral_denoising
-from .face_graph import FaceGraph
+from .face_graph import FaceGraph, RingTier
 
 __all__ = ["guided_normal_filtering", "patch_inconsistency", "guidance_normals"]
 
 _EPS = 1e-9
+
+
+def _largest_difference(normals: Float[Array, "*batch F 3"], tier: RingTier) -> Float[Array, "*batch W"]:
+    """max_{a,b∈N(f)} ‖n_a − n_b‖² for the faces f of one ring tier (:class:`~.face_graph.RingTier`)."""
+    ring = normals[..., tier.ring, :]                                    # (*b, W, k, 3)
+    # the pairs (a, b) with a <= b only (the differences are symmetric: the same maximum, from 210 of the
+    # 400 products at k = 20); n_a · n_b written out by component: XLA fuses it into one loop (a batched
+    # (k, 3) @ (3, k) matmul per face runs 2-3x slower on CPU)
+    ia, ib = np.triu_indices(ring.shape[-2])
+    left, right = ring[..., ia, :], ring[..., ib, :]                    # (*b, W, k(k+1)/2, 3)
+    dots = sum(left[..., c] * right[..., c] for c in range(3))
+    pair = tier.ring_mask[:, ia] & tier.ring_mask[:, ib]
+    return jnp.max(jnp.where(pair, 2 - 2 * dots, 0), axis=-1)
 
 
 def patch_inconsistency(graph: FaceGraph, normals: Float[Array, "*batch F 3"]) -> Float[Array, "*batch F"]:
@@ -57,15 +70,7 @@ def patch_inconsistency(graph: FaceGraph, normals: Float[Array, "*batch F 3"]) -
 
     Returns:
         H(P_j) per face, (*batch, F)."""
-    ring = normals[..., graph.ring, :]                                   # (*b, F, K, 3)
-    # the pairs (a, b) with a <= b only (the differences are symmetric: the same maximum, from 210 of the
-    # 400 products at K = 20); n_a · n_b written out by component: XLA fuses it into one loop (a batched
-    # (K, 3) @ (3, K) matmul per face runs 2-3x slower on CPU)
-    ia, ib = np.triu_indices(ring.shape[-2])
-    left, right = ring[..., ia, :], ring[..., ib, :]                    # (*b, F, K(K+1)/2, 3)
-    dots = sum(left[..., c] * right[..., c] for c in range(3))
-    pair = graph.ring_mask[:, ia] & graph.ring_mask[:, ib]
-    d2 = jnp.max(jnp.where(pair, 2 - 2 * dots, 0), axis=-1)
+    d2 = jnp.concatenate([_largest_difference(normals, t) for t in graph.tiers], axis=-1)[..., graph.tier_order]
     spread = jnp.sqrt(jnp.maximum(d2, 0))
     a = normals[..., graph.edge_faces[:, 0], :]
     b = normals[..., graph.edge_faces[:, 1], :]
