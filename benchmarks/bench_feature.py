@@ -1,7 +1,7 @@
 """Feature-preserving filters: time per normal-filter pass against PyMeshLab's
 two-step smoothing (the only packaged feature-preserving filter) in the same run.
 
-    .venv/bin/python benchmarks/bench_feature.py [--big] [--repeat 3]
+    .venv/bin/python benchmarks/bench_feature.py [--big] [--repeat 3] [--tiers-only]
 
 * jaxmesh ``guided_normal`` and ``bilateral_normal`` with 20 normal passes and
   20 vertex updates (the reference figure for guided filtering in the issue:
@@ -9,7 +9,11 @@ two-step smoothing (the only packaged feature-preserving filter) in the same run
   median of --repeat; per pass = (time with 20 passes − time with 0 passes) / 20;
 * PyMeshLab ``apply_coord_two_steps_smoothing`` (20 normal passes and 20 vertex
   passes), if pymeshlab is installed (``pip install '.[bench]'``);
-* ``l0`` (40 half-quadratic steps) on the bunny.
+* ``l0`` (40 half-quadratic steps) on the bunny;
+* guided filtering's patch inconsistency on the rings split into width tiers (the face
+  graph's ``tiers``, what the filter runs) against every ring padded to the widest (one
+  tier), on the bunny and on a simplified bunny (``fast_simplification``, irregular
+  valences: the widest ring is about three times the mean), per call.
 
 --big adds the bunny subdivided twice (~556k vertices).  float64, CPU.
 Numbers depend on the machine; compare the ratios.
@@ -39,6 +43,36 @@ def jaxmesh_time(name: str, noisy, repeat: int, **params) -> float:
     return median_time(lambda: run(noisy, aux).block_until_ready(), repeat)
 
 
+def tier_times(noisy, repeat: int) -> tuple[float, float, int, int]:
+    """Seconds per patch-inconsistency call with the graph's tiers and with one tier of the widest
+    ring, the widest ring and the number of tiers."""
+    from jaxmesh.denoise import RingTier, face_graph, patch_inconsistency
+    from jaxmesh.geometry import face_normals
+
+    graph = face_graph(noisy)
+    one = graph._replace(tiers=(RingTier(jax.numpy.arange(noisy.num_faces, dtype=jax.numpy.int32), graph.ring,
+                                         graph.ring_mask),),
+                         tier_order=jax.numpy.arange(noisy.num_faces, dtype=jax.numpy.int32))
+    normals = face_normals(noisy)
+    run = jax.jit(patch_inconsistency)
+    out = [run(g, normals).block_until_ready() for g in (graph, one)]
+    assert bool((out[0] == out[1]).all()), "the tiers changed the result"
+    tiered, padded = (median_time(lambda g=g: run(g, normals).block_until_ready(), repeat) for g in (graph, one))
+    return tiered, padded, graph.ring.shape[1], len(graph.tiers)
+
+
+def simplified(mesh, keep: float = 0.5):
+    """The mesh simplified by quadric decimation to ``keep`` of its faces (irregular valences)."""
+    import fast_simplification
+
+    v, f = fast_simplification.simplify(np.array(mesh.vertices, np.float64, order="C"),
+                                        np.array(mesh.faces, np.int32, order="C"), 1.0 - keep)
+    t = trimesh.Trimesh(v, f, process=True)
+    t.update_faces(t.nondegenerate_faces())
+    t.remove_unreferenced_vertices()
+    return jaxmesh.Mesh.from_arrays(t.vertices, t.faces)
+
+
 def pymeshlab_time(noisy, repeat: int):
     try:
         import pymeshlab
@@ -57,10 +91,11 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--big", action="store_true")
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--tiers-only", action="store_true", help="only the patch-inconsistency table")
     args = ap.parse_args()
     bunny = jaxmesh.data.load_sample("bunny", dtype=np.float64)
-    meshes = [("bunny", bunny)]
-    if args.big:
+    meshes = [] if args.tiers_only else [("bunny", bunny)]
+    if args.big and not args.tiers_only:
         t = trimesh.Trimesh(np.asarray(bunny.vertices), np.asarray(bunny.faces), process=False)
         t = t.subdivide().subdivide()
         meshes.append(("bunny x16", jaxmesh.Mesh.from_arrays(t.vertices, t.faces)))
@@ -82,6 +117,14 @@ def main() -> None:
                   + ", ".join(f"{k} {v / peer:.2f}x" for k, v in times.items()))
         if label == "bunny":
             print(f"  jaxmesh l0 (40 steps) {jaxmesh_time('l0', noisy, 1):7.2f} s")
+    print("\nguided filtering's patch inconsistency, ms per call (median of 5 x --repeat)")
+    print("| mesh | faces | widest ring | tiers | tiered | widest ring for all | padded / tiered |")
+    print("|---|---|---|---|---|---|---|")
+    for label, mesh in (("bunny", bunny), ("bunny, simplified to half", simplified(bunny))):
+        noisy = jaxmesh.add_noise(jaxmesh.normalize(mesh), 0.2, 0, along_normals=True)
+        tiered, padded, width, count = tier_times(noisy, 5 * args.repeat)
+        print(f"| {label} | {noisy.num_faces} | {width} | {count} | {tiered * 1e3:.1f} | {padded * 1e3:.1f} | "
+              f"{padded / tiered:.2f}x |")
 
 
 if __name__ == "__main__":
