@@ -1,16 +1,9 @@
 """Blending denoisers, with the weights chosen blind (aggregation).
 
 Where two denoisers err differently, the average of their outputs can beat
-both: on the shared spot at 0.3ℓ̄ (isotropic noise) the oracle-tuned Taubin
-filter reaches 6.67° of mean face-normal error, the oracle-tuned local
-bilateral normal scheme 6.63°, and their best convex blend 6.46°
-(``experiments/denoise/oracle_blend.py``).  Blind, on the fandisk with noise
-along the normals at 0.3ℓ̄, blending the local bilateral scheme with guided
-filtering (weight 0.25) took the choice from 3.30° to 3.09°
-(``experiments/denoise/feature_table.py``).  Choosing weights by an unbiased
-estimate of the risk is Blu & Luisier's SURE-LET (2007); here the estimate is
-:mod:`jaxmesh.tune.auto`'s recorrupted edge-tilt risk, which needs no
-derivative of either denoiser.
+both.  Choosing weights by an unbiased estimate of the risk is Blu & Luisier's
+SURE-LET (2007); here the estimate is :mod:`jaxmesh.tune.auto`'s recorrupted
+edge-tilt risk, which needs no derivative of either denoiser.
 
 **The weight.**  For two denoisers f_i, f_j and one recorruption (ŷ, ỹ), let
 T_i = A(f_i(ŷ) − ỹ) (the edge tilts of :func:`~jaxmesh.tune.edge_tilt`).  The
@@ -28,12 +21,8 @@ afresh (independent of those that ranked the candidates, so a lucky ranking
 draw does not carry over), for every pair of *leaders* (the best setting of
 each search path and of each method among the fixed candidates), and the
 blend is kept only when its estimate on those draws is below the single
-winner's.  Over the 36 cells of ``feature_table.py`` (six meshes, σ ∈ {0.1,
-0.3, 0.5}ℓ̄, both noise models) the blind error fell in 26, rose in 8, mean
-−1.0% (``--blend-draws 0`` for the table without it).  It is not always right:
-the estimate tracks the mean *squared* tilt, and a blend trades a few large
-angle errors for many small ones (fandisk 0.1ℓ̄ isotropic 1.55° → 1.62°,
-maxplanck 0.5ℓ̄ isotropic 9.44° → 9.67°).
+winner's.  The estimate tracks the mean *squared* tilt, so a blend may trade a
+few large angle errors for many small ones.
 
 **Larger mixtures.**  The same estimate is the quadratic wᵀGw of any convex
 weights w over K denoisers (G_kl = Σ_draws ⟨T_k, T_l⟩), so
@@ -42,17 +31,12 @@ weights w over K denoisers (G_kl = Σ_draws ⟨T_k, T_l⟩), so
 one of its faces, where G_S w = ν1 (:func:`mixture_weights`), so the faces
 are enumerated.  ``choose_denoiser``'s ``snapshots`` adds each search path's
 leader at other iteration counts (a Taubin filter at t and 2t passes blends
-into another polynomial low-pass filter).  Measured and **not** the
-default: with up to four rows and snapshots at ½ and 2× the leader's count
-(``feature_table.py --blind-only --blend-size 4 --snapshots 0.5 2`` →
-``feature_table_size4_snap0.5-2.md``) the blind error fell in 16 of the 36
-cells and rose in 17 (mean −0.16%); below the oracle Taubin at σ ∈ {0.1,
-0.3}ℓ̄ in 16 of 24 (18 with pairs: spot 0.3ℓ̄ isotropic joined, 6.73° →
-6.59°; the cow at 0.1ℓ̄ isotropic, 10.29° → 10.56°, and the camelhead along
-the normals, 2.44° → 2.45° and 4.29° → 4.37°, left).  The estimate falls
-with every row added, but the mean angle does not follow (camelhead 0.5ℓ̄
-along the normals 5.66° → 6.27°); a reading, not tested: the more rows, the
-more the weights chase the squared tilt's few large errors.
+into another polynomial low-pass filter).  Pairs without snapshots are the
+default.
+
+What blending gains and costs on the shared meshes, and how the larger mixtures
+measured: the denoising guide (*Feature-preserving denoising*, the blending and
+larger-mixture items).
 """
 
 from __future__ import annotations
@@ -69,7 +53,7 @@ __all__ = ["BLEND_DRAWS", "BLEND_SIZE", "SNAPSHOT_FACTORS", "blend_weight", "bes
 BLEND_DRAWS = 6
 #: folded into the recorruption key for the blend's draws (the ranking's are unsalted)
 BLEND_SALT = 2
-#: the most denoisers one blend mixes (module docstring: larger mixtures measured worse, so pairs)
+#: the most denoisers one blend mixes (pairs: larger mixtures measured no better, the denoising guide)
 BLEND_SIZE = 2
 #: the iteration counts, as multiples of its leader's, at which each search path is also blended (none by default)
 SNAPSHOT_FACTORS: tuple[float, ...] = ()

@@ -15,9 +15,9 @@ r_i < τ = ``HELD_OUT_TOLERANCE`` and as *displaced* (D) when r_i >
 ``DISPLACED_FACTOR`` τ.  The fits are impulse repair at its defaults (exact on
 smooth regions, but it rounds creases off, so an untouched crease vertex reads
 far from it) and the pilot, guided normal filtering (it keeps the creases):
-with the repair alone the crease vertices were missing from U, the measured
-faces below avoided every crease, and impulse repair, which fails exactly
-there, was scored as the best filter on the fandisk.
+with the repair alone the crease vertices would be missing from U, and the
+measured faces below would avoid the creases, exactly where impulse repair
+fails (the denoising guide, *Impulsive noise*).
 
 **A draw.**  Each vertex of U is displaced with probability p̂ along the
 pilot's normal n_i by ξ_i ~ N(0, σ̂₁²); so that the share of displaced vertices

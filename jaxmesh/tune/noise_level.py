@@ -24,13 +24,11 @@ operator K = D⁻¹A − I is a high-pass filter; n_i · (K²η)_i has standard
 deviation σ ‖row_i(K²)‖, so σ̂ = 1.4826 · MAD_i(n_i · (K² y)_i / ‖row_i(K²)‖).
 The normals n_i are those of the mesh after three umbrella steps x ← x + ½Kx:
 the noisy mesh's own normals are tilted by the noise, and the projection onto
-them misses part of it (σ̂/σ at 0.3ℓ̄ along the normals, "min": human 0.77,
-camelhead 0.90, spot 0.94 with the noisy normals; 0.95, 0.98, 0.99 with the
-smoothed ones; at 0.02ℓ̄ and 0.1ℓ̄ the ratios moved by at most 0.07).
-On irregular, detailed meshes K² leaves the surface's own curvature times the
-sampling irregularity in the residual, which reads as noise at low σ; and the
-MAD is robust only while such vertices are a minority (on the fandisk, half the
-vertices lie on curved or sharp parts: σ̂/σ = 1.68 at 0.02ℓ̄).
+them would miss part of it.  On irregular, detailed meshes K² leaves the
+surface's own curvature times the sampling irregularity in the residual, which
+reads as noise at low σ; and the MAD is robust only while such vertices are a
+minority (not on a CAD model whose curved and sharp parts hold half its
+vertices).
 
 **"flat"**: the flattest patches, after Liu, Tanaka & Okutomi's weak-textured
 patches for images.  With z_i = n_i · (K² y)_i / ‖row_i(K²)‖ as above, take the
@@ -41,9 +39,8 @@ connectivity (overlapping patches, correlated residuals), so it is calibrated
 on the mesh itself: T₁ is the same statistic of unit noise along the normals
 (4 fixed draws), and σ̂ = √(T(y) / T₁).  Deterministic, and exactly
 equivariant (scale) and invariant (rigid motions).  It reads the noise where
-the surface is smoothest, so a CAD model's flat half counts; it reads ~5% high
-under isotropic noise (calibrated along the normals) and low (0.77) on the
-human at 0.3ℓ̄ along the normals, where the noisy normals tilt the projection.
+the surface is smoothest, so a CAD model's flat half counts; calibrated along
+the normals, it reads isotropic noise a little high.
 
 **"min"** (the default): the smaller of "flat" and "umbrella".  Both count the
 surface's own detail as noise, so each over-reads; the smaller over-reads less.
@@ -70,7 +67,7 @@ __all__ = ["estimate_noise", "estimate_tangential_noise", "noise_sigma", "blind_
            "LOW_NOISE", "umbrella_square_row_norms", "NOISE_ESTIMATORS"]
 
 #: below this σ̂ (in mean edge lengths) the estimators read a surface's own detail
-#: as noise: 0.055 ℓ̄ on the clean cow, 1.01–3.07× the true σ at 0.02 ℓ̄ (module docstring)
+#: as noise (the denoising guide, *the noise estimate*)
 LOW_NOISE = 0.1
 
 
@@ -250,8 +247,8 @@ def estimate_tangential_noise(mesh: Mesh, quantile: float = 0.1, draws: int = 2)
     2-ring patch means of ‖t_i‖² / ‖row_i(K²)‖², calibrated by the same
     statistic of unit noise in the tangent planes (``draws`` fixed draws).
     Isotropic noise of σ reads σ̂_t ≈ σ, noise along the normals σ̂_t ≪ σ; the
-    mesh's own sampling irregularity reads as tangential noise (0.005–0.16ℓ̄
-    on the clean shared meshes, ``experiments/denoise/noise_estimate.py``).
+    mesh's own sampling irregularity reads as tangential noise
+    (``experiments/denoise/noise_estimate.py`` measures it on clean meshes).
 
     Arguments:
         mesh: a single mesh.
