@@ -244,6 +244,33 @@ def test_noise_estimate_recovers_sigma_and_is_equivariant(estimator):
     assert estimate_noise(clean, estimator) < 0.02 * ell    # a smooth clean sphere reads as (almost) noise-free
 
 
+def test_a_given_noise_level_outside_its_range_is_refused_before_any_work():
+    """σ is refused unless it lies within SIGMA_RANGE mean edge lengths (1e300 overflowed the estimate's
+    squares, 1e-300 divided by zero): by noise_sigma, choose_denoiser, tune, tune_batch and tune_shared,
+    each naming the level in mean edge lengths; the ends of the range are accepted."""
+    from jaxmesh.tune import SIGMA_RANGE, checked_sigma, choose_denoiser, noise_sigma, tune_shared
+
+    mesh = sphere(2)
+    ell = float(jaxmesh.mean_edge_length(mesh))
+    low, high = SIGMA_RANGE
+    assert noise_sigma(mesh, low * ell * 1.001) == (pytest.approx(low * ell * 1.001), False)
+    assert float(checked_sigma(mesh, high * ell * 0.999)) == pytest.approx(high * ell * 0.999)
+    for bad in (1e300, 1e-300, high * ell * 1.01, low * ell * 0.99):
+        for call in (lambda: noise_sigma(mesh, bad), lambda: choose_denoiser(mesh, sigma=bad),
+                     lambda: tune(mesh, sigma=bad), lambda: tune_batch([mesh, sphere(1)], sigma=bad),
+                     lambda: tune_shared([mesh, sphere(1)], sigma=bad)):
+            with pytest.raises(ValueError, match="mean edge lengths of this mesh"):
+                call()
+    for bad in (0.0, -1.0, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="must be a positive number"):
+            noise_sigma(mesh, bad)
+    # one sigma per batch element of positions, each against its own mesh's edge length
+    batched = mesh.with_vertices(jnp.stack([mesh.vertices, 1e6 * mesh.vertices]))
+    assert checked_sigma(batched, [0.1 * ell, 1e5 * ell]).shape == (2,)
+    with pytest.raises(ValueError, match="mean edge lengths"):
+        checked_sigma(batched, 0.01 * ell)
+
+
 def test_tangential_noise_estimate_tells_isotropic_noise_from_noise_along_the_normals():
     from jaxmesh.tune import estimate_tangential_noise
 

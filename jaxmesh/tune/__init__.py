@@ -13,8 +13,10 @@ from .patches import Patches, sample_patches
 from .noise_level import (
     LOW_NOISE,
     NOISE_ESTIMATORS,
+    SIGMA_RANGE,
     BlindTuningWarning,
     blind_caveats,
+    checked_sigma,
     estimate_noise,
     estimate_tangential_noise,
     noise_sigma,
@@ -30,7 +32,8 @@ from .run import AUTO, DenoiseRun, denoise_with_tuning, split_auto
 __all__ = [
     "tune", "tune_lambda", "tune_batch", "tune_shared", "TuneOptions", "TuneResult", "frame",
     "AUTO", "DenoiseRun", "denoise_with_tuning", "split_auto",
-    "estimate_noise", "estimate_tangential_noise", "noise_sigma", "umbrella_square_row_norms", "NOISE_ESTIMATORS",
+    "estimate_noise", "estimate_tangential_noise", "noise_sigma", "checked_sigma", "SIGMA_RANGE",
+    "umbrella_square_row_norms", "NOISE_ESTIMATORS",
     "blind_caveats", "BlindTuningWarning", "LOW_NOISE",
     "choose_denoiser", "AutoResult", "Candidate", "CANDIDATES", "IMPULSIVE_CANDIDATES", "SearchPath", "PATHS",
     "NOISE_MODELS", "RACE_KEEP", "edge_tilt", "estimate_impulsive_noise", "ImpulsiveNoise", "sample_patches", "Patches",

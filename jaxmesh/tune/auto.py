@@ -280,7 +280,7 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
     clock.append(time.perf_counter())
     seconds = dict(zip(("noise_law", "patches", "ranking", "choice"), np.diff(clock).round(3).tolist()))
     method, params = (components[0][0], components[0][1]) if len(components) == 1 else ("blend", {})
-    blind_caveats(noisy, law["sigma"], law["estimated"], risk / noisy_risk)
+    blind_caveats(noisy, law["sigma"], law["estimated"], risk / noisy_risk if noisy_risk > 0 else np.inf)
     return AutoResult(method, params, noisy.with_vertices(out), law["sigma"], law["estimated"], law["tangential"],
                       risk, noisy_risk, bool(risk < noisy_risk), table, components, law["law"], law["fraction"],
                       search.num_vertices, seconds, estimator)

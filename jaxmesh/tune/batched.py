@@ -7,13 +7,14 @@ import functools
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from ..batch import PaddedBatch, pad_batch, unpad
 from ..mesh import Mesh
 from ..metrics import visual_error
 from ..transforms import to_frame as _to_frame
 from ..transforms import unit_frame as frame
-from .noise_level import noise_sigma
+from .noise_level import checked_sigma, noise_sigma
 from .objectives import noisy_visual_error_expectation
 from .search import search
 from .options import TuneOptions
@@ -26,7 +27,6 @@ from .tuner import (
     _named,
     _prepare,
     _result,
-    _sigma_for,
     _tune_one,
 )
 
@@ -142,7 +142,8 @@ def tune_batch(noisy, clean=None, method="kernel", *, iterations: int | None = N
             s = jnp.asarray([noise_sigma(m)[0] for m in singles], stacked.vertices.dtype)
         else:
             s = jnp.broadcast_to(jnp.asarray(sigma, stacked.vertices.dtype), (b,))
-            _sigma_for(singles[0], s, True)
+            for m, one in zip(singles, np.asarray(s)):
+                checked_sigma(m, one)
     else:
         s = None
         for k, (m, c) in enumerate(zip(singles, unpack(clean_stacked.vertices))):
@@ -208,5 +209,8 @@ def tune_shared(noisy, clean=None, method="kernel", *, iterations: int | None = 
     if blind:
         s = (jnp.asarray([noise_sigma(m)[0] for m in noisy], batch.mesh.vertices.dtype) if sigma is None
              else jnp.broadcast_to(jnp.asarray(sigma, batch.mesh.vertices.dtype), (len(noisy),)))
+        if sigma is not None:
+            for m, one in zip(noisy, np.asarray(s)):
+                checked_sigma(m, one)
     out = _shared_jit(batch.mesh, clean_batch, s, key, cfg=cfg)
     return _result(cfg, out, s, None)

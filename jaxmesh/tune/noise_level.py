@@ -63,8 +63,8 @@ from ..geometry import mean_edge_length, vertex_normals
 from ..mesh import Mesh
 from ..operators import umbrella
 
-__all__ = ["estimate_noise", "estimate_tangential_noise", "noise_sigma", "blind_caveats", "BlindTuningWarning",
-           "LOW_NOISE", "umbrella_square_row_norms", "NOISE_ESTIMATORS"]
+__all__ = ["estimate_noise", "estimate_tangential_noise", "noise_sigma", "checked_sigma", "blind_caveats",
+           "BlindTuningWarning", "LOW_NOISE", "SIGMA_RANGE", "umbrella_square_row_norms", "NOISE_ESTIMATORS"]
 
 #: below this σ̂ (in mean edge lengths) the estimators read a surface's own detail
 #: as noise (the denoising guide, *the noise estimate*)
@@ -75,6 +75,11 @@ class BlindTuningWarning(UserWarning):
     """Blind tuning or choice cannot vouch for its result (see the message)."""
 
 NOISE_ESTIMATORS = ("min", "flat", "quadric", "umbrella")
+
+#: the given noise levels blind tuning accepts, in mean edge lengths ℓ̄: below, the noise sits under
+#: float32's rounding of a mesh's coordinates; above, it is larger than the mesh itself (a mesh of a
+#: million vertices spans about 10³ ℓ̄), and the estimates' squares leave floating point
+SIGMA_RANGE = (1e-7, 1e3)
 
 _MAD_TO_SIGMA = 1.482602218505602  # 1 / Φ⁻¹(3/4)
 
@@ -299,16 +304,37 @@ def noise_sigma(mesh: Mesh, sigma=None) -> tuple[float, bool]:
     Returns:
         (σ, estimated)."""
     if sigma is not None:
-        s = float(np.asarray(sigma))
-        if not (np.isfinite(s) and s > 0):
-            raise ValueError(f"the noise sigma must be a positive number (mesh units), got {sigma!r}")
-        return s, False
+        return float(checked_sigma(mesh, sigma)), False
     s = estimate_noise(mesh)
     if not (np.isfinite(s) and s > 0):
         raise ValueError(
             f"the noise of this mesh cannot be estimated (estimate {s:g} from {mesh.num_vertices} vertices: "
             "too few, or an exactly smooth surface); give the noise level (CLI: --noise-sigma)")
     return s, True
+
+
+def checked_sigma(mesh: Mesh, sigma) -> np.ndarray:
+    """A given noise level, refused unless it is a positive number within ``SIGMA_RANGE``
+    mean edge lengths of ``mesh`` (of each mesh of a batch of positions).
+
+    Arguments:
+        mesh: a mesh (single, or with batched vertices (*batch, V, 3)).
+        sigma: the noise standard deviation in mesh units: a number, or one per batch element.
+
+    Returns:
+        σ as a float64 array of ``sigma``'s shape."""
+    s = np.asarray(sigma, np.float64)
+    if not (np.all(np.isfinite(s)) and np.all(s > 0)):
+        raise ValueError(f"the noise sigma must be a positive number (mesh units), got {sigma!r}")
+    ell = np.asarray(mean_edge_length(mesh), np.float64)
+    low, high = SIGMA_RANGE
+    ratio = s / np.where(ell > 0, ell, 1.0)
+    bad = (ell > 0) & ~((ratio >= low) & (ratio <= high))
+    if np.any(bad):
+        r, e = np.broadcast_to(ratio, bad.shape)[bad].flat[0], np.broadcast_to(ell, bad.shape)[bad].flat[0]
+        raise ValueError(f"the noise sigma {r * e:g} is {r:.3g} mean edge lengths of this mesh (mean edge length "
+                         f"{e:.4g}); give one between {low:g} and {high:g} mean edge lengths, in mesh units")
+    return s
 
 
 def blind_caveats(mesh: Mesh, sigma: float, estimated: bool, relative_risk: float) -> list[str]:

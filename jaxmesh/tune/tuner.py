@@ -55,7 +55,7 @@ from .objectives import (
     relative_error,
     sure_visual_error,
 )
-from .noise_level import blind_caveats, noise_sigma
+from .noise_level import blind_caveats, checked_sigma, noise_sigma
 from .options import TuneOptions
 from .search import search
 from .space import Coordinate, search_space
@@ -268,10 +268,7 @@ def _sigma_for(noisy: Mesh, sigma, blind: bool):
         return None
     if sigma is None:
         return jnp.asarray(noise_sigma(noisy)[0], noisy.dtype)
-    s = jnp.asarray(sigma, noisy.dtype)
-    if not bool(jnp.all(jnp.isfinite(s) & (s > 0))):
-        raise ValueError(f"sigma must be a positive noise standard deviation (mesh units), got {sigma}")
-    return s
+    return jnp.asarray(checked_sigma(noisy, sigma), noisy.dtype)
 
 
 _tune_jit = jax.jit(_tune_one, static_argnames="cfg")

@@ -165,6 +165,10 @@ def test_denoise_auto_passes_the_noise_model_on(capsys, tmp_path, small_pair, mo
     assert "within the surface (isotropic noise)" in capsys.readouterr().out
     assert main(["denoise", noisy, str(tmp_path / "t.ply"), "--method", "taubin", "--noise-model", "normal"]) == 1
     assert "--noise-model applies to --method auto" in capsys.readouterr().err
+    for level in ("1e300", "1e-300"):      # an overflow and a division by zero before the range was checked
+        assert main(["denoise", noisy, str(tmp_path / "s.ply"), "--noise-sigma", level]) == 1
+        assert "mean edge lengths of this mesh" in capsys.readouterr().err
+    assert not (tmp_path / "s.ply").exists()
     assert main(["denoise", noisy, str(tmp_path / "t.ply"), "--method", "taubin", "--search-vertices", "all"]) == 1
     assert "--search-vertices applies to --method auto" in capsys.readouterr().err
     for bad in ("7", "many"):
