@@ -2,6 +2,7 @@
 output, exit codes, errors, and files equal to what the library computes."""
 
 import json
+import re
 import socket
 import subprocess
 import sys
@@ -169,6 +170,11 @@ def test_denoise_auto_passes_the_noise_model_on(capsys, tmp_path, small_pair, mo
         assert main(["denoise", noisy, str(tmp_path / "s.ply"), "--noise-sigma", level]) == 1
         assert "mean edge lengths of this mesh" in capsys.readouterr().err
     assert not (tmp_path / "s.ply").exists()
+    with pytest.raises(SystemExit):       # the help states the range the library checks
+        main(["denoise", "--help"])
+    from jaxmesh.tune import SIGMA_RANGE
+    stated = re.search(r"between (\S+) and (\S+) mean edge lengths", " ".join(capsys.readouterr().out.split()))
+    assert tuple(map(float, stated.groups())) == SIGMA_RANGE
     assert main(["denoise", noisy, str(tmp_path / "t.ply"), "--method", "taubin", "--search-vertices", "all"]) == 1
     assert "--search-vertices applies to --method auto" in capsys.readouterr().err
     for bad in ("7", "many"):
