@@ -60,6 +60,11 @@ def report_auto(args, label, out, mesh, reference, choice, caveats, seconds) -> 
     if args.json:
         print(json.dumps(summary))
         return 0
+    if choice.method == "none":
+        print(f"{label} -> {out}: written unchanged, the mesh reads as noise-free ({seconds:.2f} s)")
+        if reference is not None:
+            _errors_lines(summary)
+        return 0
     if choice.method == "blend":
         what = "a blend, " + " + ".join(f"{w:.3g} x {m} {_settings(p)}" for m, p, w in choice.components)
     else:

@@ -45,8 +45,8 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import time
+import warnings
 from collections.abc import Sequence
-from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -62,7 +62,9 @@ from .blend import (BLEND_DRAWS, BLEND_SALT, BLEND_SIZE, SNAPSHOT_FACTORS, best_
 from .heldout import (HELD_OUT_MIN_FACES, feature_faces, held_out_inputs, held_out_split, measured_faces,
                       stratum_weights)
 from .impulsive import estimate_impulsive_noise, read_after_repair
-from .noise_level import blind_caveats, estimate_tangential_noise, noise_sigma
+from .noise_level import (BlindTuningWarning, blind_caveats, estimate_noise, estimate_tangential_noise,
+                          noise_sigma)
+from .auto_result import AutoResult
 from .paths import (BILATERAL_FEATURE_MAX_ITERATIONS, BILATERAL_FEATURE_SETTING, BILATERAL_PATH_FIXED,
                     BILATERAL_PATH_MAX_ITERATIONS, BILATERAL_PATH_SIGMAS, PATHS, TAUBIN_LAMS,
                     TAUBIN_MAX_ITERATIONS, TAUBIN_PASS_BANDS, SearchPath, taubin_mu)
@@ -99,66 +101,6 @@ CANDIDATES: tuple[Candidate, ...] = tuple(
 #: the candidates added when the noise is read as impulsive: impulse repair (L0 minimisation, the literature's
 #: answer, is left out: on the shared meshes it did not beat guided filtering and cost the most)
 IMPULSIVE_CANDIDATES: tuple[Candidate, ...] = tuple(_grid("impulse_repair", alpha=(0.1, 0.3, 1.0), iterations=(5, 10)))
-
-
-@dataclasses.dataclass(frozen=True)
-class AutoResult:
-    """What :func:`choose_denoiser` chose and why.
-
-    * ``method``, ``params``: the winner (the method's other parameters at
-      their defaults), or ``"blend"`` and ``{}`` when two are blended;
-      ``components``: (method, params, weight) of what ``mesh``, the output, is
-      made of (one with weight 1, or the blend's two, :mod:`jaxmesh.tune.blend`);
-    * ``sigma``: the noise σ used (mesh units; impulsive noise: σ₁, the displaced
-      vertices' level) and whether it was ``estimated``; ``tangential_sigma``: the
-      σ_t within the surface of the recorruption; ``noise_law``: ``"gaussian"`` or
-      ``"impulsive"``, and ``fraction``: the share p̂ of displaced vertices (1 for Gaussian);
-    * ``risk``: the winner's estimated mean squared edge tilt (radians²) at the
-      recorrupted noise level, or, under impulsive noise, on the held-out draws (a blend's on its
-      own draws), ``noisy_risk`` doing nothing's, and ``improved = risk < noisy_risk``;
-    * ``table``: every candidate with its estimate, best first;
-    * ``search_vertices``: the vertices of the mesh the candidates were ranked on (the
-      whole mesh's, or its patches', :mod:`jaxmesh.tune.patches`);
-    * ``estimator``: ``"recorrupted"`` (:mod:`jaxmesh.tune.recorrupt`) or ``"held_out"``
-      (impulsive noise, :mod:`jaxmesh.tune.heldout`), the estimate that ranked the candidates;
-    * ``seconds``: wall seconds of each stage: ``"noise_law"`` (read on the whole mesh),
-      ``"patches"`` (sampling them; 0 on the whole mesh), ``"ranking"`` (the race and the
-      blend's draws) and ``"choice"`` (the choice run on the whole mesh).
-    """
-
-    method: str
-    params: dict
-    mesh: Mesh
-    sigma: float
-    estimated: bool
-    tangential_sigma: float
-    risk: float
-    noisy_risk: float
-    improved: bool
-    table: list
-    components: tuple = ()
-    noise_law: str = "gaussian"
-    fraction: float = 1.0
-    search_vertices: int = 0
-    seconds: dict = dataclasses.field(default_factory=dict)
-    estimator: str = "recorrupted"
-
-    @property
-    def rms_tilt_degrees(self) -> float:
-        """√risk in degrees: the estimated RMS normal error of the winner."""
-        return float(np.degrees(np.sqrt(max(self.risk, 0.0))))
-
-    def summary(self) -> dict[str, Any]:
-        """A JSON-ready account of the choice."""
-        return {"method": self.method, "params": self.params, "noise_sigma": self.sigma,
-                "noise_sigma_estimated": self.estimated, "tangential_noise_sigma": self.tangential_sigma,
-                "noise_law": self.noise_law, "noise_fraction": self.fraction,
-                "estimated_rms_normal_error_deg": self.rms_tilt_degrees,
-                "noisy_rms_normal_error_deg": float(np.degrees(np.sqrt(max(self.noisy_risk, 0.0)))),
-                "improved": self.improved, "search_vertices": self.search_vertices, "seconds": self.seconds,
-                "estimator": self.estimator,
-                "components": [{"method": m, "params": p, "weight": w} for m, p, w in self.components],
-                "candidates": [{"method": m, "params": p, "risk": r} for m, p, r in self.table]}
 
 
 @stored_jit
@@ -257,6 +199,8 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
     clock = [time.perf_counter()]
     law = _noise_law(noisy, sigma, noise_model)
     clock.append(time.perf_counter())
+    if law["law"] == "none":
+        return _unchanged(noisy, clock[1] - clock[0])
     if law["law"] == "impulsive":
         candidates = list(candidates) + [c for c in impulsive_candidates if c not in candidates]
     search, s_vertex, core = noisy, law["vertex_sigma"], None
@@ -284,6 +228,15 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
     return AutoResult(method, params, noisy.with_vertices(out), law["sigma"], law["estimated"], law["tangential"],
                       risk, noisy_risk, bool(risk < noisy_risk), table, components, law["law"], law["fraction"],
                       search.num_vertices, seconds, estimator)
+
+
+def _unchanged(noisy: Mesh, seconds: float) -> AutoResult:
+    """The result for a mesh that reads as noise-free (σ̂ = 0): the input itself, with a warning."""
+    warnings.warn(f"the mesh reads as noise-free (noise estimate 0 from {noisy.num_vertices} vertices: an exactly "
+                  "smooth surface, or too few vertices), so it is returned unchanged; give the noise level to "
+                  "denoise it anyway (CLI: --noise-sigma)", BlindTuningWarning, stacklevel=3)
+    return AutoResult("none", {}, noisy, 0.0, True, 0.0, 0.0, 0.0, False, [], (), "none", 0.0, 0,
+                      {"noise_law": round(seconds, 3), "patches": 0.0, "ranking": 0.0, "choice": 0.0})
 
 
 def _path_methods(paths: Sequence[SearchPath]) -> frozenset:
@@ -382,7 +335,11 @@ def _noise_law(noisy: Mesh, sigma, noise_model: str) -> dict:
                                  "give the noise level (CLI: --noise-sigma) or another noise model")
             return {"sigma": s, "vertex_sigma": found.vertex_sigma() * (s / found.sigma), "tangential": 0.0,
                     "estimated": estimated, "law": "impulsive", "fraction": found.fraction}
-    s, estimated = noise_sigma(noisy, sigma)
+    s, estimated = (estimate_noise(noisy), True) if sigma is None else noise_sigma(noisy, sigma)
+    if s == 0:
+        return {"sigma": 0.0, "law": "none"}
+    if not np.isfinite(s):
+        raise ValueError(f"the noise estimate of this mesh is {s}; give the noise level (CLI: --noise-sigma)")
     s_t = {"normal": 0.0, "isotropic": s}.get(noise_model)
     s_t = min(estimate_tangential_noise(noisy), s) if s_t is None else s_t
     return {"sigma": s, "vertex_sigma": s, "tangential": s_t, "estimated": estimated, "law": "gaussian",

@@ -147,6 +147,33 @@ def test_denoise_auto_is_the_default_and_says_what_it_chose(capsys, tmp_path, sm
 
 
 @pytest.mark.filterwarnings("ignore:1 isolated vertices:jaxmesh.mesh.MeshWarning")  # small_pair's far vertex
+def test_the_default_writes_a_noise_free_mesh_unchanged(capsys, tmp_path):
+    """A mesh whose noise estimate is 0 (a flat grid: an exactly smooth surface) is written unchanged by
+    the default command, exit 0, with a warning that says how to denoise it anyway; the library's
+    choose_denoiser returns it as method "none"; a given noise level still denoises it."""
+    import warnings
+
+    from conftest import grid_arrays
+    from jaxmesh.tune import BlindTuningWarning, choose_denoiser
+
+    flat = jaxmesh.Mesh.from_arrays(*grid_arrays(12, 10))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        choice = choose_denoiser(flat)
+    assert choice.method == "none" and choice.noise_law == "none" and not choice.improved and choice.table == []
+    assert choice.mesh is flat
+    assert [w.category for w in caught] == [BlindTuningWarning] and "noise-free" in str(caught[0].message)
+    src, out = str(tmp_path / "flat.ply"), str(tmp_path / "out.ply")
+    jaxmesh.save(flat, src)
+    assert main(["denoise", src, out]) == 0
+    captured = capsys.readouterr()
+    assert "written unchanged" in captured.out and "--noise-sigma" in captured.err
+    np.testing.assert_array_equal(jaxmesh.load(out).vertices, flat.vertices)
+    assert main(["denoise", src, str(tmp_path / "j.ply"), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["method"] == "none" and "noise-free" in summary["warnings"][0]
+
+
 def test_denoise_auto_passes_the_noise_model_on(capsys, tmp_path, small_pair, monkeypatch):
     """--noise-model reaches the chooser (run here with one candidate and no paths or blends:
     the full search is the test above)."""
