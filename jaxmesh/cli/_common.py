@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import warnings
 from pathlib import Path
@@ -62,9 +63,25 @@ def mesh_source(args) -> list[tuple[str, Callable]]:
     return out
 
 
-def check_output(path: str, force: bool) -> None:
-    if Path(path).exists() and not force:
+def check_output(path: str, force: bool, mesh: bool = False) -> None:
+    """Refuse, before any work, an output that could not be written: a directory, an existing file
+    (unless ``force``), a missing or unwritable folder, or (``mesh``) a suffix no mesh writer knows."""
+    p = Path(path)
+    if p.is_dir():
+        raise CLIError(f"{path} is a directory; name the file to write")
+    if p.exists() and not force:
         raise CLIError(f"{path} exists; use --force to replace it")
+    parent = p.parent if str(p.parent) else Path(".")
+    if not parent.is_dir():
+        raise CLIError(f"{path}: directory {parent} does not exist")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise CLIError(f"{path}: directory {parent} is not writable")
+    if mesh:
+        from ..io import SUPPORTED_FORMATS
+
+        if p.suffix.lstrip(".").lower() not in SUPPORTED_FORMATS:
+            raise CLIError(f"{path}: unsupported mesh format {p.suffix or '(no suffix)'}; name OUT with one of "
+                           + ", ".join("." + f for f in SUPPORTED_FORMATS))
 
 
 def positional_output(args) -> str:

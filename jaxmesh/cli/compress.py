@@ -5,11 +5,13 @@ from __future__ import annotations
 
 import json
 import sys
+from pathlib import Path
 
 from ..compress import compress, save_compressed
 import numpy as np
 
-from ._common import check_output, check_view, io_arguments, load_input, positional_output, view_argument, write_view
+from ._common import (CLIError, check_output, check_view, io_arguments, load_input, positional_output, view_argument,
+                      write_view)
 
 
 def configure(p) -> None:
@@ -48,6 +50,11 @@ def run(args) -> int:
     out = positional_output(args)
     if out != "-":
         check_output(out, args.force)
+        from ..io import SUPPORTED_FORMATS
+
+        if Path(out).suffix.lstrip(".").lower() in SUPPORTED_FORMATS:
+            raise CLIError(f"{out}: {Path(out).suffix} names a mesh format, but compress writes a .jxm stream; "
+                           "name OUT *.jxm (jaxmesh decompress reads it back into a mesh)")
     check_view(args)
     label, mesh = load_input(args)
     c = compress(mesh, keep=args.keep, bits=args.bits, basis=args.basis, patch_size=args.patch_size,

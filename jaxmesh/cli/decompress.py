@@ -39,7 +39,7 @@ def run(args) -> int:
             print(json.dumps({"path": args.input, **info}) if args.json else
                   "\n".join([args.input] + [f"  {k.replace('_', ' ')}: {v}" for k, v in info.items()]))
             return 0
-        check_output(args.output, args.force)
+        check_output(args.output, args.force, mesh=True)
         mesh = decompress(data)
     except ValueError as err:
         raise err if isinstance(err, CLIError) else CLIError(f"{args.input}: {err}") from err

@@ -76,7 +76,7 @@ def _load_pair(args):
     """(label, mesh, reference or None, output path); the reference must share the connectivity."""
     out = positional_output(args)
     label, mesh = load_input(args)
-    check_output(out, args.force)
+    check_output(out, args.force, mesh=True)
     check_view(args)
     reference = load(args.reference) if args.reference else None
     if reference is not None and not mesh.same_connectivity(reference):

@@ -39,7 +39,7 @@ def run(args) -> int:
     if args.model == "impulsive" and not 0 <= fraction <= 1:
         raise CLIError(f"--fraction must be in [0, 1], got {args.fraction}")
     label, mesh = load_input(args)
-    check_output(out, args.force)
+    check_output(out, args.force, mesh=True)
     impulsive = args.model == "impulsive"
     noisy = add_noise(mesh, args.sigma, args.seed, along_normals=args.along_normals or impulsive,
                       relative=not args.absolute, fraction=fraction if impulsive else 1.0)

@@ -43,6 +43,27 @@ def test_every_method_runs_from_the_cli_with_its_defaults(tmp_path, small_pair):
         assert main(["denoise", noisy, str(tmp_path / f"{name}.ply"), "--method", name]) == 0, name
 
 
+def test_an_output_that_cannot_be_written_is_refused_before_any_work(capsys, tmp_path, small_pair, monkeypatch):
+    """A missing folder, a directory, an unknown mesh suffix, and a .jxm stream under a mesh suffix are
+    refused before the input is denoised (the chooser is never called) and nothing is written."""
+    import jaxmesh.cli.denoise as cli_denoise
+
+    def never(*args, **kwargs):
+        raise AssertionError("the work started before the output was checked")
+
+    monkeypatch.setattr(cli_denoise, "choose_denoiser", never)
+    noisy = small_pair[0]
+    for out, message in ((tmp_path / "missing" / "o.ply", "does not exist"), (tmp_path, "is a directory"),
+                         (tmp_path / "o.xyz", "unsupported mesh format .xyz")):
+        assert main(["denoise", noisy, str(out)]) == 1
+        assert message in capsys.readouterr().err
+        assert main(["noise", noisy, str(out), "--sigma", "0.1"]) == 1
+        assert message in capsys.readouterr().err
+    assert main(["compress", noisy, str(tmp_path / "c.ply")]) == 1
+    assert "names a mesh format" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
 def test_denoise_errors(capsys, tmp_path, small_pair):
     noisy, out = small_pair[0], str(tmp_path / "o.ply")
     assert main(["denoise", noisy, out, "--method", "taubin", "--sigma-c", "1"]) == 1
