@@ -5,6 +5,7 @@ processes) is tested in tests/cli/test_cli_denoise.py."""
 
 from __future__ import annotations
 
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -104,6 +105,34 @@ def test_an_interrupted_run_resumes_without_redoing_or_losing_outputs(tmp_path):
         np.testing.assert_allclose(jaxmesh.load(str(out)).vertices, want.vertices, atol=1e-12)
 
 
+def test_a_report_that_fails_midway_stops_the_report_not_the_outputs_and_is_an_error(tmp_path):
+    """The write-behind thread whose report fails (a full disk) keeps saving every result, never
+    blocks the run (more jobs than its queue holds), and close() raises the report's error, named;
+    end to end, /dev/full as the report: every output written, then the error."""
+    import errno
+
+    from jaxmesh.dataset.streams import Report, Writer
+
+    class Full(Report):
+        def write(self, record):
+            raise OSError(errno.ENOSPC, "No space left on device", "r.jsonl")
+
+    saved = []
+    writer = Writer(lambda mesh, path, overwrite: saved.append(path), False, Full(None))
+    for k in range(200):                                     # the queue holds 64
+        writer.put(None, k, {})
+    with pytest.raises(OSError, match="report stopped there") as err:
+        writer.close()
+    assert saved == list(range(200)) and err.value.filename == "r.jsonl"
+    if not Path("/dev/full").exists():
+        pytest.skip("no /dev/full on this system for the end-to-end check")
+    paths = write_dataset(tmp_path / "in", 3)
+    with pytest.raises(OSError, match="No space left on device") as err:
+        denoise_files(paths, tmp_path / "out", "taubin", report="/dev/full")
+    assert err.value.filename == "/dev/full"
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == sorted(p.name for p in paths)
+
+
 def test_inputs_from_files_directories_and_globs(tmp_path):
     (tmp_path / "d").mkdir()
     for name in ("b.ply", "a.obj", "c.txt"):
@@ -121,6 +150,9 @@ def test_bad_arguments_are_refused_before_any_work(tmp_path):
         denoise_files([str(tmp_path)], tmp_path / "out", "taubin", suffix=".png")
     with pytest.raises(ValueError, match="ladder ratio"):
         denoise_files([str(tmp_path)], tmp_path / "out", "taubin", ladder=1.0)
+    for report, message in ((tmp_path / "missing" / "r.jsonl", "does not exist"), (tmp_path, "is a directory")):
+        with pytest.raises(ValueError, match=f"report .*{message}"):
+            denoise_files([str(tmp_path)], tmp_path / "out", "taubin", report=report)
     assert not (tmp_path / "out").exists()
     with pytest.raises(ValueError, match="only continuous parameters"):
         denoise_files([str(tmp_path)], tmp_path / "out", "taubin", {"iterations": "auto"})

@@ -304,12 +304,12 @@ def denoise_files(inputs: Sequence[str | Path], out_dir: str | Path, method: str
     if not 0 <= index < count:
         raise ValueError(f"share {share}: the index must be in [0, count)")
     folder = supervision.check(reference, tune_on, _tuned(params), method != "auto" and bool(METHODS[method].aux))
+    log = Report(report)                      # refused here, before any work, if it cannot be written
     items, records = _collect(inputs, out_dir, suffix, overwrite, method, index, count)
     if tune_on:
         params, training = supervision.tune_on_subset(inputs, tune_on, method, params, _tuned(params), folder, load)
         records = [{**rec, "tuned_on": training} for rec in records]
     out_dir.mkdir(parents=True, exist_ok=True)
-    log = Report(report)
     todo = [k for k, rec in enumerate(records) if "status" not in rec]
     todo = [todo[j] for j in _read_sizes([items[k] for k in todo], load, [records[k] for k in todo])]
     for rec in records:

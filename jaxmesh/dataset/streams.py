@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import queue
 import threading
+from pathlib import Path
 
 from .plan import Batch
 
@@ -55,22 +56,39 @@ class Report:
 
     def __init__(self, path):
         self._path, self._lock = path, threading.Lock()
+        if path is None:
+            return
+        p = Path(path)
+        if p.is_dir():
+            raise ValueError(f"report {path}: is a directory; name the file to append to")
+        if not p.parent.is_dir():
+            raise ValueError(f"report {path}: directory {p.parent} does not exist")
+        try:      # appending nothing creates the file: an unwritable report is refused before any work
+            open(p, "a", encoding="utf-8").close()
+        except OSError as err:
+            raise ValueError(f"report {path}: cannot be written ({err.strerror or err})") from err
 
     def write(self, record: dict) -> None:
         record.pop("_sizes", None)
         if self._path is None:
             return
-        with self._lock, open(self._path, "a", encoding="utf-8") as fh:
-            fh.write(json.dumps(record) + "\n")
+        try:
+            with self._lock, open(self._path, "a", encoding="utf-8") as fh:
+                fh.write(json.dumps(record) + "\n")
+        except OSError as err:          # named: a full disk's error carries no file name
+            raise OSError(err.errno, err.strerror or str(err), str(self._path)) from err
 
 
 class Writer:
     """Writes results on a thread, behind the computation; a write that fails marks
-    its record; each record goes to the report once written."""
+    its record; each record goes to the report once written.  An error of the
+    thread itself (the report cannot be appended to, a disk full) stops the report,
+    not the writes, and :meth:`close` raises it."""
 
     def __init__(self, save, overwrite: bool, log: Report):
         self._q: queue.Queue = queue.Queue(maxsize=64)
         self._save, self._overwrite, self._log = save, overwrite, log
+        self.error: BaseException | None = None
         self._thread = threading.Thread(target=self._work, name="jaxmesh-write-behind", daemon=True)
         self._thread.start()
 
@@ -78,17 +96,29 @@ class Writer:
         while (job := self._q.get()) is not None:
             mesh, path, rec, check = job
             try:
-                if check is not None:
-                    check()
-                self._save(mesh, path, overwrite=self._overwrite)
-            except (ValueError, OSError) as err:
-                rec.update(status="failed", error=f"{type(err).__name__}: {err}")
-            self._log.write(rec)
+                try:
+                    if check is not None:
+                        check()
+                    self._save(mesh, path, overwrite=self._overwrite)
+                except (ValueError, OSError) as err:
+                    rec.update(status="failed", error=f"{type(err).__name__}: {err}")
+                if self.error is None:
+                    self._log.write(rec)
+            except Exception as err:      # kept for close(): the thread goes on draining, so put never blocks
+                self.error = self.error or err
 
     def put(self, mesh, path, rec, check=None):
         """Save ``mesh`` to ``path`` (after ``check()``, which may add errors to ``rec``)."""
         self._q.put((mesh, path, rec, check))
 
     def close(self):
+        """Wait for the pending writes; then raise the thread's own error, if it had one."""
         self._q.put(None)
         self._thread.join()
+        err = self.error
+        if isinstance(err, OSError):
+            raise OSError(err.errno, f"{err.strerror or err}; the report stopped there (the outputs were written)",
+                          err.filename) from err
+        if err is not None:
+            raise ValueError(f"the write-behind thread failed ({type(err).__name__}: {err}); the report stopped "
+                             "there (the outputs were written)") from err
