@@ -148,8 +148,9 @@ def test_bad_arguments_are_refused_before_any_work(tmp_path):
         denoise_files([str(tmp_path)], tmp_path / "out", "auto", {"lam": 1.0})
     with pytest.raises(ValueError, match="suffix"):
         denoise_files([str(tmp_path)], tmp_path / "out", "taubin", suffix=".png")
-    with pytest.raises(ValueError, match="ladder ratio"):
-        denoise_files([str(tmp_path)], tmp_path / "out", "taubin", ladder=1.0)
+    for ladder in (1.0, float("inf"), float("nan")):     # inf was an OverflowError
+        with pytest.raises(ValueError, match="ladder ratio"):
+            denoise_files([str(tmp_path)], tmp_path / "out", "taubin", ladder=ladder)
     for report, message in ((tmp_path / "missing" / "r.jsonl", "does not exist"), (tmp_path, "is a directory")):
         with pytest.raises(ValueError, match=f"report .*{message}"):
             denoise_files([str(tmp_path)], tmp_path / "out", "taubin", report=report)

@@ -56,12 +56,12 @@ def rung(n: int, ratio: float = LADDER_RATIO) -> int:
 
     Arguments:
         n: a size (≥ 1).
-        ratio: the ladder's step (> 1).
+        ratio: the ladder's step (finite, > 1).
 
     Returns:
         The ladder size."""
-    if not ratio > 1:
-        raise ValueError(f"the ladder ratio must be > 1, got {ratio!r}")
+    if not (ratio > 1 and math.isfinite(ratio)):
+        raise ValueError(f"the ladder ratio must be a finite number > 1, got {ratio!r}")
     if n <= LADDER_START:
         return LADDER_START
     k = math.ceil(math.log(n / LADDER_START, ratio) - 1e-12)
