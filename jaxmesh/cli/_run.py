@@ -4,17 +4,27 @@ seen at once), and the mapping of every expected failure to one error line."""
 from __future__ import annotations
 
 import os
+import signal
 import sys
 import threading
 
 __all__ = ["run_command"]
 
 
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM, raised in the main thread like Ctrl-C's KeyboardInterrupt."""
+
+
+def _raise_terminated(signum, frame):
+    raise _Terminated()
+
+
 def _in_worker(run, args):
     """``run(args)`` in a worker thread.  The main thread would otherwise be blocked
     in C++ while XLA compiles or runs, and Python would see SIGINT only when that
-    call returns.  On Ctrl-C the temporary files being written are removed and the
-    process exits with 130 without waiting for the worker."""
+    call returns.  On Ctrl-C (or SIGTERM) the temporary files being written are
+    removed and the process exits with 130 (143) without waiting for the worker;
+    the files already written stay."""
     box: dict = {}
 
     def work():
@@ -24,21 +34,27 @@ def _in_worker(run, args):
             box["error"] = err
 
     thread = threading.Thread(target=work, name="jaxmesh-command", daemon=True)
+    main = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, _raise_terminated) if main else None
     thread.start()
     try:
         while thread.is_alive():
             thread.join(0.1)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as err:
         io = sys.modules.get("jaxmesh.io")     # the files being written, if any module writes
         for tmp in list(io.IN_PROGRESS if io else ()):
             try:
                 os.unlink(tmp)
             except OSError:
                 pass
-        print("jaxmesh: interrupted; nothing was written", file=sys.stderr)
+        what = "terminated" if isinstance(err, _Terminated) else "interrupted"
+        print(f"jaxmesh: {what}; no partly written file is left", file=sys.stderr)
         sys.stderr.flush()
         sys.stdout.flush()
-        os._exit(130)
+        os._exit(143 if isinstance(err, _Terminated) else 130)
+    finally:
+        if main and previous is not None:
+            signal.signal(signal.SIGTERM, previous)
     if "error" in box:
         raise box["error"]
     return box.get("value")
