@@ -5,9 +5,10 @@ the three geodesic estimates against exact geodesic paths (edge-flip
 geodesics of Sharp & Crane 2020 through potpourri3d, optional) on a seeded
 sample of vertex pairs.
 
-    .venv/bin/python experiments/stats/run.py [--meshes cow bunny ...] [--sources 200]
+    .venv/bin/python experiments/stats/run.py [--meshes cow bunny ...] [--sources 200] [--figures-only]
 
-writes experiments/results/stats/<mesh>.png, summary.md and geodesic_error.md.
+writes experiments/results/stats/<mesh>.png, summary.md and geodesic_error.md (only the
+figures with --figures-only, leaving the tables of every mesh as they are).
 """
 
 from __future__ import annotations
@@ -60,6 +61,7 @@ def main() -> None:
     ap.add_argument("--meshes", nargs="+", default=sorted(p.stem for p in SHARED.glob("*.ply")))
     ap.add_argument("--sources", type=int, default=200)
     ap.add_argument("--pairs", type=int, default=400)
+    ap.add_argument("--figures-only", action="store_true", help="redraw the figures, leave the tables")
     args = ap.parse_args()
     if not SHARED.is_dir():
         raise SystemExit(f"{SHARED} not found: these experiments need ../shared/meshes beside the repo")
@@ -77,12 +79,16 @@ def main() -> None:
         diag = float(jaxmesh.bounding_box_diagonal(mesh))
         rows.append((name, s, sec, diag))
         print(f"{name}: {sec:.1f} s", flush=True)
+        if args.figures_only:
+            continue
         try:
             errs.append((name, geodesic_errors(mesh, args.pairs, seed=0)))
         except ImportError:
             pass
         except RuntimeError as err:   # geometry-central refuses non-manifold meshes
             print(f"  no exact geodesics for {name}: {str(err).splitlines()[0][-120:]}")
+    if args.figures_only:
+        return
     lines = ["# Mesh statistics (thesis ch.5)", "",
              "Regenerate: `.venv/bin/python experiments/stats/run.py`. "
              f"{args.sources} seeded geodesic sources (seed 0); geodesic distances as a fraction of the "

@@ -5,6 +5,8 @@ from __future__ import annotations
 import io
 import sys
 
+import numpy as np
+
 from ..io import write_bytes_atomic
 from ..stats import mesh_statistics, plot_statistics
 from ._common import CLIError, check_output, mesh_arguments, mesh_source, print_record
@@ -35,7 +37,12 @@ def run(args) -> int:
     for i, (label, loader) in enumerate(sources):
         mesh = loader()
         st = mesh_statistics(mesh, sources=args.sources, seed=args.seed, knn=args.knn, progress=_stage(label))
-        print_record({"path": label, **st["summary"]}, args.json, i == 0)
+        record = {"path": label, **st["summary"]}
+        if args.json:     # the spectra as quantile functions: the eigenvalue at ranks 0, 1/64, …, 1
+            ranks = np.linspace(0.0, 1.0, 65)
+            record["spectrum_quantiles"] = {kind: np.interp(ranks, *st["spectrum"][kind]).tolist()
+                                            for kind in st["spectrum"]}
+        print_record(record, args.json, i == 0)
         if args.plot:
             import matplotlib
 

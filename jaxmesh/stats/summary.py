@@ -14,7 +14,7 @@ from .clustering import clustering, clustering_by_degree, thesis_clustering
 from .degree import (assortativity_function, average_degree, degree_assortativity, degree_distribution,
                      neighbor_connectivity)
 from .geodesic import graph_distances, heat_geodesics, sample_sources
-from .spectrum import laplacian_spectrum
+from .spectrum import DENSE_MAX, laplacian_spectrum
 
 __all__ = ["mesh_statistics", "plot_statistics"]
 
@@ -35,8 +35,8 @@ def mesh_statistics(mesh: Mesh, sources: int = 200, seed: int = 0, knn: int = 8,
         sources: geodesic sources, sampled from ``seed``.
         seed: the seed of the source sample.
         knn: neighbours of the kNN graph.
-        spectrum_k: eigenvalues at each end of the spectra (default: the whole
-            spectrum up to 3000 vertices, else 20; :func:`laplacian_spectrum`).
+        spectrum_k: exact eigenvalues at each end of the spectra (default None: the whole
+            spectrum, exact up to 3000 vertices, else estimated; :func:`laplacian_spectrum`).
         geodesics: the geodesic methods: ``"edges"``, ``"knn"``, ``"heat"``.
         progress: called with the name of each stage before it runs (the CLI prints it).
 
@@ -77,6 +77,8 @@ def mesh_statistics(mesh: Mesh, sources: int = 200, seed: int = 0, knn: int = 8,
         "clustering_formulas_differ_at": int(differ.sum()),
         "sources": int(len(src)),
         "seed": seed,
+        "spectrum": ("exact" if spectrum_k is None and mesh.num_vertices <= DENSE_MAX else
+                     "estimated (kernel polynomial method)" if spectrum_k is None else f"{spectrum_k} at each end"),
     }
     for g, x in dist.items():
         summary[f"geodesic_{g}_mean"] = float(x.mean()) if x.size else float("nan")
@@ -106,7 +108,9 @@ def plot_statistics(mesh: Mesh, stats: dict, title: str = "", path=None, up: str
     for kind, style in (("combinatorial", "-"), ("normalized", "--")):
         r, lam = stats["spectrum"][kind]
         ax[0, 1].plot(r, lam, style, lw=1, label=kind)
-    ax[0, 1].set(xlabel="normalised rank", ylabel="eigenvalue", title="Laplacian spectrum")
+    how = stats["summary"].get("spectrum", "exact")
+    ax[0, 1].set(xlabel="normalised rank", ylabel="eigenvalue",
+                 title="Laplacian spectrum" + ("" if how == "exact" else f"\n{how}"))
     ax[0, 1].legend(fontsize=7)
     ks, pk = stats["degree"]
     ax[0, 2].bar(ks, pk, color="tab:blue")
