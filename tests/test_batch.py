@@ -33,7 +33,8 @@ def three_meshes():
 # methods with a host-built face graph (the median and the feature-preserving filters) batch
 # over copies of one mesh (tests/test_denoise_methods.py), not over padded different meshes:
 # the graph of each mesh would have to be padded too (noted for the dataset-runner issue)
-@pytest.mark.parametrize("name", [n for n in sorted(METHODS) if not METHODS[n].aux])
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if n == "impulse_repair" else n   # 9 s
+                                  for n in sorted(METHODS) if not METHODS[n].aux])
 def test_padded_batch_equals_single_calls(three_meshes, name):
     batch = pad_batch(three_meshes)
     out = jax.vmap(lambda m: METHODS[name](m))(batch.mesh)

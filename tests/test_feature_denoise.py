@@ -140,22 +140,24 @@ def test_face_graph_matches_brute_force(sphere):
 
 def _tier_cost(counts, widths, per_tier):
     """Pairs computed when faces of ring size c go to the narrowest width >= c, plus a cost per tier."""
-    return per_tier * len(widths) + sum(w * (w + 1) / 2 for c in counts for w in [min(w for w in widths if w >= c)])
+    w = np.asarray(widths)[np.searchsorted(widths, counts)]
+    return per_tier * len(widths) + float(np.sum(w * (w + 1) / 2))
 
 
 def test_ring_tiers_are_the_cheapest_split_and_cover_every_face():
     """The widths are the least-cost ones over every increasing tuple of widths 1..K (not only
     the sizes present), and the tiers of a UV sphere (poles of valence 24 among rings of ~13)
     partition its faces, each ring cut to a width that keeps it whole."""
-    from jaxmesh.denoise import RING_TIERS, ring_tiers
+    from jaxmesh.denoise import RING_TIERS, RingTier, ring_tiers
     from jaxmesh.denoise.face_graph import _TIER_COST
 
     rng = np.random.default_rng(0)
     for counts in ([13] * 900 + [29] * 3, rng.integers(9, 20, 500).tolist() + [41] * 20, [7] * 10):
         top = max(counts)
+        counts = np.asarray(counts)
         options = [(*inner, top) for t in range(RING_TIERS) for inner in itertools.combinations(range(1, top), t)]
         best = min(_tier_cost(counts, w, _TIER_COST) for w in options)
-        got = ring_tiers(np.asarray(counts))
+        got = ring_tiers(counts)
         assert got == sorted(got) and got[-1] == top and len(got) <= RING_TIERS
         assert _tier_cost(counts, got, _TIER_COST) == best
     uv = trimesh.creation.uv_sphere(count=[24, 24])
@@ -173,8 +175,18 @@ def test_ring_tiers_are_the_cheapest_split_and_cover_every_face():
         np.testing.assert_array_equal(np.asarray(t.ring_mask), mask[f, :k])
     n = np.asarray(jaxmesh.geometry.face_normals(mesh)) + 0.1 * rng.standard_normal((mesh.num_faces, 3))
     n /= np.linalg.norm(n, axis=1, keepdims=True)
-    np.testing.assert_allclose(patch_inconsistency(g, jnp.asarray(n)), np_inconsistency(np.asarray(mesh.faces), n,
-                               np_rings(np.asarray(mesh.faces))), rtol=1e-10, atol=1e-12)
+    got = np.asarray(jax.jit(patch_inconsistency)(g, jnp.asarray(n)))
+    one = g._replace(tiers=(RingTier(jnp.arange(mesh.num_faces, dtype=jnp.int32), g.ring, g.ring_mask),),
+                     tier_order=jnp.arange(mesh.num_faces, dtype=jnp.int32))
+    np.testing.assert_array_equal(got, jax.jit(patch_inconsistency)(one, jnp.asarray(n)))   # rings at full width
+    f = np.asarray(mesh.faces)
+    widest = np.argsort(-mask.sum(axis=1))[:60]          # the pole faces of the widest tier, against numpy
+    pairs = {k: [a for a, _ in x] for k, x in np_edge_faces(f).items() if len(x) == 2}
+    for j in widest:
+        ring = [h for h in range(len(f)) if set(f[h]) & set(f[j])]
+        spread = max(np.linalg.norm(n[a] - n[b]) for a, b in itertools.product(ring, ring))
+        phis = [np.linalg.norm(n[a] - n[b]) for a, b in pairs.values() if a in ring and b in ring]
+        assert got[j] == pytest.approx(spread * max(phis) / (1e-9 + sum(phis)), rel=1e-10, abs=1e-12)
 
 
 def test_face_graph_needs_the_host(sphere):

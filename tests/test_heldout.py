@@ -138,6 +138,7 @@ def test_the_chooser_ranks_impulsive_noise_by_the_held_out_estimate(ball):
                                          rel=1e-6)
 
 
+@pytest.mark.slow   # a statistical check of the estimate's order (the chooser's use of it: the test above)
 def test_the_held_out_estimate_orders_impulse_repair_as_the_clean_mesh_does(ball):
     """Impulse repair at α = 0.1 and α = 10 on the ball at p = 0.5: the chooser picks the one with the
     lower true normal error."""

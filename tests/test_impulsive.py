@@ -129,6 +129,7 @@ def test_the_reading_is_scale_equivariant_and_rotation_invariant(ball):
     np.testing.assert_allclose(other.posterior, law.posterior, atol=1e-6)
 
 
+@pytest.mark.slow   # a statistical check over many draws
 def test_per_vertex_recorruption_has_the_covariance_its_trace_assumes():
     """With s_i per vertex, z's normal variance is s_i² and the closed-form trace equals the Monte Carlo mean."""
     s = trimesh.creation.icosphere(3)                        # 642 vertices: no decision here, only draws
@@ -147,6 +148,7 @@ def test_per_vertex_recorruption_has_the_covariance_its_trace_assumes():
     assert uniform == pytest.approx(scalar, rel=1e-12)
 
 
+@pytest.mark.slow   # a whole blind search; the default run has the command's (tests/cli) and the held-out one's
 def test_the_chooser_uses_the_impulsive_law_and_its_robust_candidates(ball):
     few = [Candidate("taubin", {"iterations": 5})]
     robust = [Candidate("impulse_repair", {"iterations": 1})]

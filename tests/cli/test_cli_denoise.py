@@ -85,6 +85,7 @@ def test_denoise_errors(capsys, tmp_path, small_pair):
     assert e.value.code == 2
 
 
+@pytest.mark.slow   # blind --lam auto; the default run has test_lam_auto_then_the_reported_lam_writes_the_same_file
 def test_denoise_lam_auto_blind(capsys, tmp_path, small_pair):
     noisy, _ = small_pair
     assert main(["denoise", noisy, str(tmp_path / "blind.ply"), "--method", "kernel", "--lam", "auto"]) == 0
