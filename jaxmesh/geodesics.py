@@ -114,7 +114,15 @@ def heat_distances(
     arrays = None if not intrinsic else tuple(jnp.asarray(z) for z in (
         triangulation.faces, triangulation.face_edges, triangulation.flips, triangulation.pairs,
         triangulation.edge_pair))
-    return _heat(mesh, sources, t, arrays, boundary=boundary, block=block, backend=backend)
+    count = sources.shape[0]
+    if count <= block:
+        return _heat(mesh, sources, t, arrays, boundary=boundary, block=block, backend=backend)
+    # one compiled block at a time (the last padded with its final source): the program is one block's,
+    # whatever the count, and no two blocks' (F, block, 3) intermediates are alive at once
+    padded = jnp.concatenate([sources, jnp.broadcast_to(sources[-1:], (-count % block,))])
+    out = [_heat(mesh, padded[lo:lo + block], t, arrays, boundary=boundary, block=block, backend=backend)
+           for lo in range(0, padded.shape[0], block)]
+    return jnp.concatenate(out, axis=0)[:count]
 
 
 @functools.partial(jax.jit, static_argnames=("boundary", "block", "backend"))

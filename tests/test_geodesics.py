@@ -124,6 +124,20 @@ def test_heat_method_equals_a_plain_implementation_of_the_paper():
     np.testing.assert_allclose(got, paper_heat_method(v, f, src, t), rtol=1e-9, atol=1e-12)
 
 
+def test_sources_in_blocks_equal_one_block_also_under_jit():
+    """More sources than ``block``: solved a block at a time (the last padded), the same distances as
+    one block, eagerly and under jit with the triangulation given; the padding never shows."""
+    v, f = grid_arrays(6, 5, jitter=0.15, seed=2)
+    mesh = jaxmesh.Mesh.from_arrays(np.c_[v[:, :2], 0.2 * np.sin(v[:, 0])], f)
+    src = np.array([0, 17, 40, 3, 29, 11, 8])
+    whole = heat_distances(mesh, src, block=64)
+    np.testing.assert_allclose(heat_distances(mesh, src, block=3), whole, rtol=1e-12, atol=1e-14)
+    tri = intrinsic_delaunay(mesh)
+    jitted = jax.jit(lambda m, s: heat_distances(m, s, triangulation=tri, block=2))(mesh, jnp.asarray(src))
+    assert jitted.shape == (7, mesh.num_vertices)
+    np.testing.assert_allclose(jitted, whole, rtol=1e-12, atol=1e-14)
+
+
 def test_boundary_conditions():
     s = trimesh.creation.icosphere(2)
     closed = jaxmesh.Mesh.from_arrays(s.vertices, s.faces)

@@ -81,7 +81,7 @@ def graph_distances(mesh: MeshOrView, sources, graph: str = "edges", k: int = 8)
     return csgraph.dijkstra(_graph(mesh, graph, k), directed=False, indices=np.asarray(sources))
 
 
-def heat_geodesics(mesh: MeshOrView, sources, t: float | None = None, block: int = 64) -> np.ndarray:
+def heat_geodesics(mesh: MeshOrView, sources, t: float | None = None, block: int = 32) -> np.ndarray:
     """Heat-method distances (S, V) from ``sources``: :func:`jaxmesh.geodesics.heat_distances`
     on the intrinsic Delaunay triangulation with the averaged boundary condition, as
     numpy; vertices unreachable from a source (another component) get inf.
