@@ -173,6 +173,19 @@ def test_heat_method_on_a_sphere_within_stated_tolerance():
     np.testing.assert_allclose(heat[np.arange(6), src], 0, atol=1e-12)
 
 
+def test_heat_geodesics_are_inf_exactly_where_the_edge_graph_cannot_reach():
+    """Two spheres apart, and an isolated vertex: the heat distances are inf exactly where
+    Dijkstra on the edge graph finds no path (the connected components), finite elsewhere."""
+    a, b = trimesh.creation.icosphere(2), trimesh.creation.icosphere(1)
+    v = np.r_[a.vertices, b.vertices + [5.0, 0, 0], [[9.0, 9.0, 9.0]]]
+    mesh = jaxmesh.Mesh.from_arrays(v, np.r_[a.faces, b.faces + len(a.vertices)], warn=False)
+    src = np.array([0, len(a.vertices) + 3, 7])
+    heat = stats.heat_geodesics(mesh, src)
+    reach = np.isfinite(stats.graph_distances(mesh, src))
+    np.testing.assert_array_equal(np.isfinite(heat), reach)
+    assert not reach[0, len(a.vertices):].any() and reach[1, len(a.vertices):-1].all()
+
+
 def test_mesh_statistics_of_a_genus_two_mesh():
     mesh = jaxmesh.load(shared_mesh_path("eight.ply"))
     s = stats.mesh_statistics(mesh, sources=20, seed=1)["summary"]

@@ -99,9 +99,11 @@ def heat_geodesics(mesh: MeshOrView, sources, t: float | None = None, block: int
     sources = np.atleast_1d(np.asarray(sources))
     if base.dtype != np.float64:
         base = base.with_vertices(jnp.asarray(base.vertices, jnp.float64)) if jax.config.jax_enable_x64 else base
-    phi = np.asarray(heat_distances(base, sources, t, block=block), np.float64)
-    reach = graph_distances(mesh, sources, "edges") < np.inf
-    return np.where(reach, phi, np.inf)
+    phi = np.array(heat_distances(base, sources, t, block=block), np.float64)          # a writable copy
+    # reachable = in the source's connected component of the edge graph (labels, not a Dijkstra)
+    _, labels = csgraph.connected_components(_graph(mesh, "edges", 1), directed=False)
+    phi[labels[sources][:, None] != labels[None, :]] = np.inf
+    return phi
 
 
 def geodesic_distances(mesh: MeshOrView, sources, method: str = "heat", k: int = 8) -> np.ndarray:
