@@ -53,6 +53,15 @@ def _settings(params: dict) -> str:
     return " ".join(f"{k}={v:g}" for k, v in params.items())
 
 
+def _estimate(choice) -> str:
+    """The chosen denoiser's estimated RMS normal error, or why there is none (a negative
+    estimate, which clamping would print as 0.00°)."""
+    if choice.risk < 0:
+        return (f"unknown (the estimate is negative, {choice.risk:.3g} rad²: the noise level is likely "
+                "overestimated)")
+    return f"{choice.rms_tilt_degrees:.2f}°"
+
+
 def report_auto(args, label, out, mesh, reference, choice, caveats, seconds) -> int:
     summary = {"input": label, "output": out, "method": choice.method, "params": choice.params,
                "seconds": round(seconds, 3), "auto": choice.summary(), "warnings": caveats}
@@ -76,7 +85,7 @@ def report_auto(args, label, out, mesh, reference, choice, caveats, seconds) -> 
     if choice.noise_law == "impulsive":
         print(f"  impulsive noise: {choice.fraction:.0%} of the vertices displaced along their normals, sigma "
               f"{choice.sigma:.4g} ({'estimated' if choice.estimated else 'given'}); "
-              + (f"estimated RMS normal error {choice.rms_tilt_degrees:.2f}° vs "
+              + (f"estimated RMS normal error {_estimate(choice)} vs "
                  f"{summary['auto']['noisy_rms_normal_error_deg']:.2f}° for the input (held-out estimate on the "
                  "vertices read as untouched)" if choice.estimator == "held_out" else
                  f"recorrupted estimate under that law {choice.risk:.3g} vs {choice.noisy_risk:.3g} for the input "
@@ -86,7 +95,7 @@ def report_auto(args, label, out, mesh, reference, choice, caveats, seconds) -> 
             args.noise_model or "auto"]
         print(f"  noise sigma {choice.sigma:.4g} ({'estimated' if choice.estimated else 'given'}), "
               f"{choice.tangential_sigma:.4g} within the surface ({model}); estimated RMS "
-              f"normal error {choice.rms_tilt_degrees:.2f}° vs {summary['auto']['noisy_rms_normal_error_deg']:.2f}° "
+              f"normal error {_estimate(choice)} vs {summary['auto']['noisy_rms_normal_error_deg']:.2f}° "
               "for the input (recorrupted estimate, both at 1.12x the noise)")
     if choice.method == "blend":
         best = choice.table[0]

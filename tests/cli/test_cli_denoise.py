@@ -169,6 +169,18 @@ def test_denoise_auto_is_the_default_and_says_what_it_chose(capsys, tmp_path, sm
 
 
 @pytest.mark.filterwarnings("ignore:1 isolated vertices:jaxmesh.mesh.MeshWarning")  # small_pair's far vertex
+def test_a_negative_error_estimate_is_reported_as_such_not_as_zero():
+    """A risk estimate below 0 (a noise level set too high) printed as 0.00° read as a perfect
+    result; the report says the estimate is negative instead, and prints degrees otherwise."""
+    from types import SimpleNamespace
+
+    from jaxmesh.cli._denoise_report import _estimate
+
+    assert "negative" in _estimate(SimpleNamespace(risk=-0.25, rms_tilt_degrees=0.0)) and "°" not in _estimate(
+        SimpleNamespace(risk=-0.25, rms_tilt_degrees=0.0))
+    assert _estimate(SimpleNamespace(risk=1e-3, rms_tilt_degrees=1.81)) == "1.81°"
+
+
 def test_the_default_writes_a_noise_free_mesh_unchanged(capsys, tmp_path):
     """A mesh whose noise estimate is 0 (a flat grid: an exactly smooth surface) is written unchanged by
     the default command, exit 0, with a warning that says how to denoise it anyway; the library's
