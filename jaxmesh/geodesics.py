@@ -115,20 +115,23 @@ def heat_distances(
         triangulation.faces, triangulation.face_edges, triangulation.flips, triangulation.pairs,
         triangulation.edge_pair))
     count = sources.shape[0]
+    if count == 0:
+        return jnp.zeros((0, mesh.num_vertices), mesh.dtype)
     if count <= block:
-        return _heat(mesh, sources, t, arrays, boundary=boundary, block=block, backend=backend)
+        return _heat(mesh, sources, t, arrays, boundary=boundary, backend=backend)
     # one compiled block at a time (the last padded with its final source): the program is one block's,
     # whatever the count, and no two blocks' (F, block, 3) intermediates are alive at once
     padded = jnp.concatenate([sources, jnp.broadcast_to(sources[-1:], (-count % block,))])
-    out = [_heat(mesh, padded[lo:lo + block], t, arrays, boundary=boundary, block=block, backend=backend)
+    out = [_heat(mesh, padded[lo:lo + block], t, arrays, boundary=boundary, backend=backend)
            for lo in range(0, padded.shape[0], block)]
     return jnp.concatenate(out, axis=0)[:count]
 
 
-@functools.partial(jax.jit, static_argnames=("boundary", "block", "backend"))
-def _heat(mesh: Mesh, sources, t, triangulation, *, boundary: str, block: int, backend: str):
-    """The numerical part of :func:`heat_distances`, compiled once per shape (the
-    triangulation's arrays are arguments, so a new one of the same sizes reuses it)."""
+@functools.partial(jax.jit, static_argnames=("boundary", "backend"))
+def _heat(mesh: Mesh, sources, t, triangulation, *, boundary: str, backend: str):
+    """The numerical part of :func:`heat_distances` for one block of sources (all solved
+    together), compiled once per shape (the triangulation's arrays are arguments, so a new
+    one of the same sizes reuses it)."""
     n, dtype = mesh.num_vertices, mesh.dtype
     if triangulation is not None:
         faces, face_edges, flips, pairs, edge_pair = triangulation
@@ -167,23 +170,19 @@ def _heat(mesh: Mesh, sources, t, triangulation, *, boundary: str, block: int, b
         dir_diag = jnp.where(on, 1.0, heat_diag)
         dir_off = jnp.where(on[e0] | on[e1], 0.0, heat_off)
 
-    out = []
-    for lo in range(0, sources.shape[0], block):
-        src = sources[lo:lo + block]
-        k = src.shape[0]
-        delta = jnp.zeros((n, k), dtype).at[src, jnp.arange(k)].set(1.0)
-        if boundary == "neumann":
-            u = solve(heat_diag, heat_off, delta)
-        else:
-            u = solve(dir_diag, dir_off, jnp.where(on[:, None], 0.0, delta))
-            if boundary == "average":
-                u_n = solve(heat_diag, heat_off, delta)
-                # a boundary source has u_D = 0: its field is the Neumann one
-                u = jnp.where(on[src][None, :], u_n, 0.5 * (u + u_n))
-        gu = jnp.einsum("fks,fkd->fsd", u[faces], grad)                   # ∇u per face, (F, k, 3)
-        x = -gu / jnp.maximum(safe_norm(gu), jnp.finfo(dtype).tiny)[..., None]
-        contrib = area[:, None, None] * jnp.einsum("fkd,fsd->fks", grad, x)   # A_f X_f · ∇ψ_k
-        b = jnp.zeros((n, k), dtype).at[flat].add(contrib.reshape(-1, k))
-        phi = solve(poisson_diag, poisson_off, b)
-        out.append((phi - phi[src, jnp.arange(k)][None, :]).T)
-    return jnp.concatenate(out, axis=0) if out else jnp.zeros((0, n), dtype)
+    src, k = sources, sources.shape[0]
+    delta = jnp.zeros((n, k), dtype).at[src, jnp.arange(k)].set(1.0)
+    if boundary == "neumann":
+        u = solve(heat_diag, heat_off, delta)
+    else:
+        u = solve(dir_diag, dir_off, jnp.where(on[:, None], 0.0, delta))
+        if boundary == "average":
+            u_n = solve(heat_diag, heat_off, delta)
+            # a boundary source has u_D = 0: its field is the Neumann one
+            u = jnp.where(on[src][None, :], u_n, 0.5 * (u + u_n))
+    gu = jnp.einsum("fks,fkd->fsd", u[faces], grad)                   # ∇u per face, (F, k, 3)
+    x = -gu / jnp.maximum(safe_norm(gu), jnp.finfo(dtype).tiny)[..., None]
+    contrib = area[:, None, None] * jnp.einsum("fkd,fsd->fks", grad, x)   # A_f X_f · ∇ψ_k
+    b = jnp.zeros((n, k), dtype).at[flat].add(contrib.reshape(-1, k))
+    phi = solve(poisson_diag, poisson_off, b)
+    return (phi - phi[src, jnp.arange(k)][None, :]).T

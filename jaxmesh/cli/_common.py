@@ -14,7 +14,7 @@ from collections.abc import Callable
 from .. import data
 
 __all__ = ["CLIError", "io_arguments", "mesh_arguments", "load_input", "mesh_source", "check_output",
-           "positional_output", "print_record", "with_caveats", "view_argument", "check_view",
+           "positional_output", "names_a_mesh_format", "print_record", "with_caveats", "view_argument", "check_view",
            "write_view"]
 
 
@@ -76,12 +76,18 @@ def check_output(path: str, force: bool, mesh: bool = False) -> None:
         raise CLIError(f"{path}: directory {parent} does not exist")
     if not os.access(parent, os.W_OK | os.X_OK):
         raise CLIError(f"{path}: directory {parent} is not writable")
-    if mesh:
+    if mesh and not names_a_mesh_format(path):
         from ..io import SUPPORTED_FORMATS
 
-        if p.suffix.lstrip(".").lower() not in SUPPORTED_FORMATS:
-            raise CLIError(f"{path}: unsupported mesh format {p.suffix or '(no suffix)'}; name OUT with one of "
-                           + ", ".join("." + f for f in SUPPORTED_FORMATS))
+        raise CLIError(f"{path}: unsupported mesh format {p.suffix or '(no suffix)'}; name OUT with one of "
+                       + ", ".join("." + f for f in SUPPORTED_FORMATS))
+
+
+def names_a_mesh_format(path: str) -> bool:
+    """Whether ``path``'s suffix is one of the mesh formats :func:`jaxmesh.save` writes."""
+    from ..io import SUPPORTED_FORMATS
+
+    return Path(path).suffix.lstrip(".").lower() in SUPPORTED_FORMATS
 
 
 def positional_output(args) -> str:

@@ -10,8 +10,8 @@ from pathlib import Path
 from ..compress import compress, save_compressed
 import numpy as np
 
-from ._common import (CLIError, check_output, check_view, io_arguments, load_input, positional_output, view_argument,
-                      write_view)
+from ._common import (CLIError, check_output, check_view, io_arguments, load_input, names_a_mesh_format,
+                      positional_output, view_argument, write_view)
 
 
 def configure(p) -> None:
@@ -50,9 +50,7 @@ def run(args) -> int:
     out = positional_output(args)
     if out != "-":
         check_output(out, args.force)
-        from ..io import SUPPORTED_FORMATS
-
-        if Path(out).suffix.lstrip(".").lower() in SUPPORTED_FORMATS:
+        if names_a_mesh_format(out):
             raise CLIError(f"{out}: {Path(out).suffix} names a mesh format, but compress writes a .jxm stream; "
                            "name OUT *.jxm (jaxmesh decompress reads it back into a mesh)")
     check_view(args)

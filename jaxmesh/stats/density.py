@@ -40,7 +40,7 @@ from ..mesh import Mesh
 from ._graph import single
 
 __all__ = ["SpectralDensity", "spectral_density", "density_quantiles", "spectrum_distance", "largest_eigenvalue",
-           "jackson", "MOMENTS", "PROBES", "MARGIN"]
+           "laplacian_of_kind", "jackson", "MOMENTS", "PROBES", "MARGIN"]
 
 #: Chebyshev moments M (the density's resolution is about π h / M)
 MOMENTS = 256
@@ -100,8 +100,16 @@ def _moments(rows, cols, vals, centre, half, probes, n: int, count: int):
     return pairs.reshape(-1)[:count]
 
 
-def _matrix(mesh, kind: str):
-    """The matrix and the Gershgorin bound on its largest eigenvalue."""
+def laplacian_of_kind(mesh, kind: str):
+    """L = D − A (``"combinatorial"``) or 𝓛 = I − D^{-1/2} A D^{-1/2} (``"normalized"``) as a scipy
+    matrix, and the Gershgorin bound on its largest eigenvalue (2 max_i d_i, or 2).
+
+    Arguments:
+        mesh: a single mesh (or its graph view).
+        kind: ``"combinatorial"`` or ``"normalized"``.
+
+    Returns:
+        (the matrix, the bound)."""
     if kind == "combinatorial":
         return jsparse.laplacian_matrix(mesh), 2.0 * float(np.max(np.asarray(mesh.degree), initial=1))
     if kind == "normalized":
@@ -153,7 +161,7 @@ def spectral_density(mesh: Mesh, kind: str = "combinatorial", moments: int = MOM
     for name, value, least in (("moments", moments, 2), ("probes", probes, 1), ("points", points, 3)):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
             raise ValueError(f"{name} must be an int >= {least}, got {value!r}")
-    mat, bound = _matrix(mesh, kind)
+    mat, bound = laplacian_of_kind(mesh, kind)
     n = mat.shape[0]
     if n == 0:
         raise ValueError("the mesh has no vertices")

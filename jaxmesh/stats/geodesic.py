@@ -26,6 +26,7 @@ from scipy.spatial import cKDTree
 
 from .. import sparse as jsparse
 from ..geodesics import heat_distances
+from ..topology import connected_components
 from ._graph import MeshOrView, single
 
 __all__ = ["sample_sources", "graph_distances", "heat_geodesics", "geodesic_distances"]
@@ -100,8 +101,7 @@ def heat_geodesics(mesh: MeshOrView, sources, t: float | None = None, block: int
     if base.dtype != np.float64:
         base = base.with_vertices(jnp.asarray(base.vertices, jnp.float64)) if jax.config.jax_enable_x64 else base
     phi = np.array(heat_distances(base, sources, t, block=block), np.float64)          # a writable copy
-    # reachable = in the source's connected component of the edge graph (labels, not a Dijkstra)
-    _, labels = csgraph.connected_components(_graph(mesh, "edges", 1), directed=False)
+    _, labels = connected_components(base)          # reachable: the source's component (labels, not a Dijkstra)
     phi[labels[sources][:, None] != labels[None, :]] = np.inf
     return phi
 

@@ -8,10 +8,9 @@ import numpy as np
 import scipy.linalg
 import scipy.sparse.linalg as spla
 
-from .. import sparse as jsparse
 from ..mesh import Mesh
 from ._graph import single
-from .density import density_quantiles, spectral_density
+from .density import density_quantiles, laplacian_of_kind, spectral_density
 
 __all__ = ["laplacian_spectrum", "QUANTILE_POINTS", "DENSE_MAX"]
 
@@ -44,12 +43,7 @@ def laplacian_spectrum(mesh: Mesh, kind: str = "combinatorial", k: int | None = 
     Returns:
         (normalised ranks r, eigenvalues), both ascending."""
     single(mesh)
-    if kind == "combinatorial":
-        mat = jsparse.laplacian_matrix(mesh)
-    elif kind == "normalized":
-        mat = jsparse.normalized_laplacian_matrix(mesh)
-    else:
-        raise ValueError(f"kind must be 'combinatorial' or 'normalized', got {kind!r}")
+    mat, _ = laplacian_of_kind(mesh, kind)
     n = mesh.num_vertices
     rank = np.arange(n) / max(n - 1, 1)
     if k is None and n <= dense_max:
