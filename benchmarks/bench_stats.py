@@ -1,13 +1,17 @@
 """Degree / clustering statistics and geodesic distributions against named peers.
 
-    .venv/bin/python benchmarks/bench_stats.py [--no-networkx]
+    .venv/bin/python benchmarks/bench_stats.py [--no-networkx] [--memory]
 
 * clustering + average neighbour degree + degree assortativity on the bunny
   subdivided twice (~556k vertices), graph already built, against
   python-igraph (C core) and networkx, in the same run (jaxmesh warm; its
   one-off XLA compile is reported separately);
 * geodesic distance distributions from 200 seeded sources on the bunny: edge
-  graph, kNN graph and heat method, and potpourri3d's heat method as a peer.
+  graph, kNN graph and heat method, and potpourri3d's heat method as a peer;
+* ``--memory``: only the peak resident memory and wall time of the command
+  ``jaxmesh stats igea.ply --json`` (134k vertices, 200 sources; needs
+  ../shared/meshes), in a child process, against the size of one (S, V) float64
+  distance array, which it no longer holds.
 
 Not part of the test suite; numbers depend on the machine, compare ratios.
 """
@@ -15,7 +19,11 @@ Not part of the test suite; numbers depend on the machine, compare ratios.
 from __future__ import annotations
 
 import argparse
+import resource
+import subprocess
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import trimesh
@@ -33,10 +41,30 @@ def timed(fn, repeat=3):
     return best, out
 
 
+def cli_memory() -> None:
+    """Peak RSS of ``jaxmesh stats`` on igea, in a child process of its own."""
+    path = Path(__file__).resolve().parents[2] / "shared" / "meshes" / "igea.ply"
+    if not path.exists():
+        raise SystemExit(f"{path} is missing (../shared/meshes)")
+    exe = Path(sys.executable).with_name("jaxmesh")
+    t = time.perf_counter()
+    r = subprocess.run([str(exe), "stats", str(path), "--json"], capture_output=True, text=True)
+    wall = time.perf_counter() - t
+    if r.returncode:
+        raise SystemExit(r.stderr)
+    peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1e6       # kB -> GB
+    v = jaxmesh.load(path).num_vertices
+    print(f"jaxmesh stats igea.ply (V={v}, 200 sources): peak RSS {peak:.2f} GB, {wall:.1f} s wall; "
+          f"one (200, V) float64 distance array is {200 * v * 8 / 1e9:.2f} GB")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--no-networkx", action="store_true", help="skip networkx (about half a minute)")
+    ap.add_argument("--memory", action="store_true", help="only the peak memory of `jaxmesh stats` on igea")
     args = ap.parse_args()
+    if args.memory:
+        return cli_memory()
     bunny = jaxmesh.data.load_sample("bunny")
     v, f = np.asarray(bunny.vertices, np.float64), np.asarray(bunny.faces)
     for _ in range(2):

@@ -100,3 +100,15 @@ def test_the_cli_writes_the_cache_then_reads_it_and_no_cache_leaves_it_alone(tmp
                {**os.environ, "JAXMESH_CACHE_DIR": "off", "HOME": str(other), "XDG_CACHE_HOME": str(other)})
     assert run.returncode == 0, run.stderr
     assert not other.exists()
+
+
+def test_malloc_arenas_capped_unless_the_user_set_them(monkeypatch):
+    import platform
+
+    from jaxmesh.cli import limit_malloc_arenas
+
+    monkeypatch.setenv("MALLOC_ARENA_MAX", "4")
+    assert limit_malloc_arenas() is False                 # glibc read the user's own setting
+    monkeypatch.delenv("MALLOC_ARENA_MAX")
+    glibc = sys.platform.startswith("linux") and platform.libc_ver()[0] == "glibc"
+    assert limit_malloc_arenas() is glibc

@@ -171,6 +171,7 @@ def test_heat_method_on_a_sphere_within_stated_tolerance():
     edges = stats.graph_distances(mesh, src)
     assert ((edges - exact)[far] / exact[far]).mean() > 3 * rel.mean()     # the graph is much worse
     np.testing.assert_allclose(heat[np.arange(6), src], 0, atol=1e-12)
+    np.testing.assert_allclose(stats.heat_geodesics(mesh, src, block=4), heat, rtol=1e-10, atol=1e-14)  # padded
 
 
 def test_heat_geodesics_are_inf_exactly_where_the_edge_graph_cannot_reach():
@@ -203,3 +204,54 @@ def test_heat_method_stays_nonnegative_on_a_mesh_with_obtuse_triangles():
     ratio = (heat / np.where(edges > 0, edges, 1))[edges > 0]
     # shorter than edge paths on the whole (measured: median 0.94, 99th percentile 1.04)
     assert np.median(ratio) < 0.97 and np.percentile(ratio, 99) < 1.1
+
+
+def test_distance_blocks_concatenate_to_the_whole_arrays():
+    mesh = jaxmesh.load(shared_mesh_path("eight.ply"))
+    src = stats.sample_sources(mesh, 11, seed=2)
+    for method in ("edges", "knn"):
+        parts = list(stats.distance_blocks(mesh, src, method, k=6, block=4))
+        assert [len(s) for s, _ in parts] == [4, 4, 3]
+        np.testing.assert_array_equal(np.concatenate([s for s, _ in parts]), src)
+        np.testing.assert_array_equal(np.concatenate([d for _, d in parts]),
+                                      stats.geodesic_distances(mesh, src, method, k=6))
+    with pytest.raises(ValueError, match="lie in"):
+        stats.distance_blocks(mesh, [0, mesh.num_vertices], "edges")
+    with pytest.raises(ValueError, match="method"):
+        stats.distance_blocks(mesh, src, "euclid")
+    with pytest.raises(ValueError, match="block"):
+        stats.distance_blocks(mesh, src, "edges", block=0)
+
+
+def test_distance_histogram_counts_what_numpy_counts_on_its_final_edges():
+    """Streamed one source at a time (so the range doubles several times and bins merge),
+    the counts equal np.histogram of all finite non-self distances on the final edges, and
+    the moments equal numpy's; the coarse density integrates to 1."""
+    mesh = jaxmesh.load(shared_mesh_path("eight.ply"))
+    src = stats.sample_sources(mesh, 9, seed=4)
+    d = stats.graph_distances(mesh, src)
+    keep = np.isfinite(d)
+    keep[np.arange(len(src)), src] = False
+    x = d[keep]
+    h = stats.distance_histogram(mesh, src, "edges", block=1, bins=256)
+    top = h.edges[-1]
+    assert np.log2(top) == np.round(np.log2(top)) and x.max() < top <= 2 * x.max()
+    np.testing.assert_array_equal(h.counts, np.histogram(x, bins=h.edges)[0])
+    assert h.count == x.size
+    assert h.mean == pytest.approx(x.mean(), rel=1e-12) and h.std == pytest.approx(x.std(), rel=1e-10)
+    edges, density = h.density(20)
+    assert len(density) <= 20 and np.sum(density * np.diff(edges)) == pytest.approx(1.0)
+    assert edges[-1] > x.max() >= edges[-2]          # the occupied range, no empty tail of bins
+    with pytest.raises(ValueError, match="power of two"):
+        stats.distance_histogram(mesh, src, "edges", bins=100)
+
+
+def test_mesh_statistics_geodesics_are_histograms_of_the_distances():
+    mesh = jaxmesh.load(shared_mesh_path("cow.ply"))
+    st = stats.mesh_statistics(mesh, sources=12, seed=0, geodesics=("edges",))
+    h = st["geodesics"]["edges"]
+    d = stats.graph_distances(mesh, st["sources"])
+    keep = np.isfinite(d)
+    keep[np.arange(12), st["sources"]] = False
+    assert isinstance(h, stats.DistanceHistogram) and h.count == keep.sum()
+    assert st["summary"]["geodesic_edges_mean"] == pytest.approx(d[keep].mean(), rel=1e-12)

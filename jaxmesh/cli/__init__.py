@@ -14,6 +14,8 @@ persistent compilation cache (:func:`jaxmesh.compiler.enable_compilation_cache`;
 ``--no-cache`` or ``JAXMESH_CACHE_DIR=off`` for none).  The executable
 (:func:`command`) exits as soon as its output is flushed, without the interpreter's
 teardown (freeing XLA's programs and buffers, a noticeable share of a short command).
+On glibc it also caps malloc at :data:`MALLOC_ARENAS` arenas unless ``MALLOC_ARENA_MAX`` is
+set (:func:`limit_malloc_arenas`).
 """
 
 from __future__ import annotations
@@ -120,6 +122,33 @@ def _finish_jax() -> None:
         distributed.shutdown()
 
 
+MALLOC_ARENAS = 2
+
+
+def limit_malloc_arenas(arenas: int = MALLOC_ARENAS) -> bool:
+    """Cap glibc's malloc arenas (``mallopt(M_ARENA_MAX)``), before JAX starts its threads.
+    By default glibc gives each thread that allocates its own arena, up to 8 per core, and
+    memory freed in one arena is not reused by another: a command whose stages allocate from
+    XLA's threads and from scipy's (``jaxmesh stats`` on a 134k-vertex mesh) peaks
+    about 0.2 GB higher for it.  Two arenas cost no measurable time on the denoisers.  Not
+    applied when ``MALLOC_ARENA_MAX`` is set (glibc read it already) or off glibc.
+
+    Arguments:
+        arenas: the most arenas.
+
+    Returns:
+        True if the cap was set."""
+    if "MALLOC_ARENA_MAX" in os.environ or not sys.platform.startswith("linux"):
+        return False
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL("libc.so.6")
+        return bool(libc.mallopt(-8, int(arenas)))      # -8: M_ARENA_MAX in glibc's malloc.h
+    except (OSError, AttributeError):                    # musl, or no libc.so.6
+        return False
+
+
 def command() -> None:
     """The ``jaxmesh`` executable (and ``python -m jaxmesh``): :func:`main` on ``sys.argv``,
     then the process ends with its exit status once pending JAX effects are done, a
@@ -131,6 +160,7 @@ def command() -> None:
 
     Returns:
         Never: the process exits."""
+    limit_malloc_arenas()
     try:
         code = main()
     except SystemExit as done:   # argparse: --help, --version, a usage error

@@ -13,16 +13,10 @@ from ._graph import graph_view
 from .clustering import clustering, clustering_by_degree, thesis_clustering
 from .degree import (assortativity_function, average_degree, degree_assortativity, degree_distribution,
                      neighbor_connectivity)
-from .geodesic import graph_distances, heat_geodesics, sample_sources
+from .geodesic import distance_histogram, sample_sources
 from .spectrum import DENSE_MAX, laplacian_spectrum
 
 __all__ = ["mesh_statistics", "plot_statistics"]
-
-
-def _finite(d: np.ndarray, sources: np.ndarray) -> np.ndarray:
-    keep = np.isfinite(d)
-    keep[np.arange(len(sources)), sources] = False        # drop the zero self-distances
-    return d[keep]
 
 
 def mesh_statistics(mesh: Mesh, sources: int = 200, seed: int = 0, knn: int = 8,
@@ -42,7 +36,9 @@ def mesh_statistics(mesh: Mesh, sources: int = 200, seed: int = 0, knn: int = 8,
 
     Returns:
         A dict: ``summary`` (scalars) and the arrays (degree distribution, K_nn(k),
-        C(k) both ways, spectra, geodesic distances by each method)."""
+        C(k) both ways, spectra; ``geodesics``: each method's
+        :class:`~jaxmesh.stats.DistanceHistogram`, reduced a few sources at a time so that
+        no (S, V) array is held)."""
     say = progress or (lambda stage: None)
     for name, value in (("sources", sources), ("knn", knn)):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
@@ -60,8 +56,7 @@ def mesh_statistics(mesh: Mesh, sources: int = 200, seed: int = 0, knn: int = 8,
     dist = {}
     for g in geodesics:
         say(f"{g} geodesics from {len(src)} sources")
-        d = heat_geodesics(mesh, src) if g == "heat" else graph_distances(mesh, src, g, knn)
-        dist[g] = _finite(d, src)
+        dist[g] = distance_histogram(mesh, src, g, knn)
     say("Laplacian spectra")
     spec = {kind: laplacian_spectrum(mesh, kind, spectrum_k) for kind in ("combinatorial", "normalized")}
     d = graph.degree
@@ -80,9 +75,8 @@ def mesh_statistics(mesh: Mesh, sources: int = 200, seed: int = 0, knn: int = 8,
         "spectrum": ("exact" if spectrum_k is None and mesh.num_vertices <= DENSE_MAX else
                      "estimated (kernel polynomial method)" if spectrum_k is None else f"{spectrum_k} at each end"),
     }
-    for g, x in dist.items():
-        summary[f"geodesic_{g}_mean"] = float(x.mean()) if x.size else float("nan")
-        summary[f"geodesic_{g}_std"] = float(x.std()) if x.size else float("nan")
+    for g, h in dist.items():
+        summary[f"geodesic_{g}_mean"], summary[f"geodesic_{g}_std"] = h.mean, h.std
     return {"summary": summary, "degree": (ks, pk), "knn": (kk, knn_k), "clustering": (ck, c_k),
             "thesis_clustering": (ck, ct_k), "spectrum": spec, "geodesics": dist, "sources": src}
 
@@ -125,8 +119,8 @@ def plot_statistics(mesh: Mesh, stats: dict, title: str = "", path=None, up: str
     ax[1, 1].plot(ck, ct, "x--", ms=4, label="thesis 2/(d-1)")
     ax[1, 1].set(xlabel="degree k", ylabel="C(k)", title="clustering")
     ax[1, 1].legend(fontsize=7)
-    for g, x in stats["geodesics"].items():
-        ax[1, 2].hist(x, bins=60, histtype="step", density=True, label=g)
+    for g, h in stats["geodesics"].items():
+        ax[1, 2].stairs(*h.density(60)[::-1], label=g)
     ax[1, 2].set(xlabel="distance", ylabel="density",
                  title=f"geodesic distances ({stats['summary']['sources']} sources)")
     ax[1, 2].legend(fontsize=7)
