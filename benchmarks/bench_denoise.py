@@ -3,7 +3,9 @@
     .venv/bin/python benchmarks/bench_denoise.py [--big] [--repeat 3]
 
 * per-iteration time (a 10-iteration call / 10, jitted, warmed up, median of
-  --repeat) of the jaxmesh kernel flow and Laplacian flow, against Open3D
+  --repeat) of the jaxmesh kernel flow (on its one-ring tiers, as for a concrete mesh,
+  and on segment sums, as under ``jit`` with the mesh traced and no ``rings=``) and
+  Laplacian flow, against Open3D
   ``filter_smooth_laplacian``, trimesh ``filter_laplacian`` (volume constraint
   off) and a plain vectorised numpy implementation of the same kernel flow;
 * compile time of a 5-iteration kernel flow (first call minus a warm call);
@@ -35,7 +37,7 @@ import numpy as np
 import trimesh
 
 import jaxmesh
-from jaxmesh.denoise import kernel_diffusion, laplacian_smoothing
+from jaxmesh.denoise import kernel_diffusion, laplacian_smoothing, vertex_rings
 
 
 def median_time(fn, repeat: int) -> float:
@@ -83,8 +85,9 @@ def peak_memory_child(big: bool) -> None:
     mesh = jaxmesh.add_noise(load_mesh(big), 0.3, 0)
     jax.block_until_ready(mesh.vertices)
     base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss     # mesh loaded, nothing compiled
-    g = jax.jit(lambda m: kernel_diffusion(m, 0.4, 10))
-    jax.block_until_ready(g(mesh).vertices)
+    rings = vertex_rings(mesh)
+    g = jax.jit(lambda m, r: kernel_diffusion(m, 0.4, 10, rings=r))
+    jax.block_until_ready(g(mesh, rings).vertices)
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     print(json.dumps({"peak_mib": peak / 1024, "extra_mib": (peak - base) / 1024}))
 
@@ -93,16 +96,21 @@ def bench(mesh: jaxmesh.Mesh, label: str, repeat: int, flag: bool) -> dict:
     noisy = jaxmesh.add_noise(mesh, 0.3, 0)
     v, f = np.array(noisy.vertices, np.float64), np.array(noisy.faces, np.int32)
     res = {"mesh": label, "V": mesh.num_vertices}
-    k10 = jax.jit(lambda m: kernel_diffusion(m, 0.4, 10))
+    rings = vertex_rings(noisy)
+    k10 = jax.jit(lambda m, r: kernel_diffusion(m, 0.4, 10, rings=r))
+    s10 = jax.jit(lambda m: kernel_diffusion(m, 0.4, 10))          # traced mesh, no rings: segment sums
     l10 = jax.jit(lambda m: laplacian_smoothing(m, 0.5, 10))
-    jax.block_until_ready(k10(noisy).vertices)
+    jax.block_until_ready(k10(noisy, rings).vertices)
+    jax.block_until_ready(s10(noisy).vertices)
     jax.block_until_ready(l10(noisy).vertices)
-    # the two flows alternate, so that a change of the machine's speed reaches both
-    kernel, laplacian = [], []
+    # the flows alternate, so that a change of the machine's speed reaches all of them
+    kernel, segments, laplacian = [], [], []
     for _ in range(repeat):
-        kernel.append(median_time(lambda: jax.block_until_ready(k10(noisy).vertices), 1) / 10)
+        kernel.append(median_time(lambda: jax.block_until_ready(k10(noisy, rings).vertices), 1) / 10)
+        segments.append(median_time(lambda: jax.block_until_ready(s10(noisy).vertices), 1) / 10)
         laplacian.append(median_time(lambda: jax.block_until_ready(l10(noisy).vertices), 1) / 10)
     res["jaxmesh kernel"], res["jaxmesh laplacian"] = statistics.median(kernel), statistics.median(laplacian)
+    res["jaxmesh kernel, segment sums"] = statistics.median(segments)
     try:
         import open3d as o3d
     except ImportError:
@@ -122,11 +130,11 @@ def bench(mesh: jaxmesh.Mesh, label: str, repeat: int, flag: bool) -> dict:
     res["numpy kernel"] = median_time(lambda: numpy_kernel_step(x32, src, dst, deg.astype(np.float32), 0.4),
                                       repeat)
     # compile time of a 5-iteration flow: first call minus a warm call
-    k5 = jax.jit(lambda m, lam: kernel_diffusion(m, lam, 5))
+    k5 = jax.jit(lambda m, lam, r: kernel_diffusion(m, lam, 5, rings=r))
     t = time.perf_counter()
-    jax.block_until_ready(k5(noisy, 0.4).vertices)
+    jax.block_until_ready(k5(noisy, 0.4, rings).vertices)
     first = time.perf_counter() - t
-    warm = median_time(lambda: jax.block_until_ready(k5(noisy, 0.5).vertices), repeat)
+    warm = median_time(lambda: jax.block_until_ready(k5(noisy, 0.5, rings).vertices), repeat)
     res["compile_s"] = first - warm
     child = ["--memory-child"] + (["--big"] if label != "bunny" else []) + (["--xla-flag"] if flag else [])
     out = subprocess.run([sys.executable, __file__, *child],
@@ -140,11 +148,12 @@ def batch_throughput(repeat: int) -> dict:
     keys = jax.random.split(jax.random.PRNGKey(0), 16)
     xs = jnp.stack([jaxmesh.add_noise(clean, 0.3, k).vertices for k in keys])
     batched = clean.with_vertices(xs)
-    fb = jax.jit(lambda m: kernel_diffusion(m, 0.4, 5))
-    jax.block_until_ready(fb(batched).vertices)
-    jax.block_until_ready(fb(clean.with_vertices(xs[0])).vertices)
-    t_batch = median_time(lambda: jax.block_until_ready(fb(batched).vertices), repeat)
-    t_loop = median_time(lambda: [jax.block_until_ready(fb(clean.with_vertices(xs[i])).vertices)
+    rings = vertex_rings(clean)
+    fb = jax.jit(lambda m, r: kernel_diffusion(m, 0.4, 5, rings=r))
+    jax.block_until_ready(fb(batched, rings).vertices)
+    jax.block_until_ready(fb(clean.with_vertices(xs[0]), rings).vertices)
+    t_batch = median_time(lambda: jax.block_until_ready(fb(batched, rings).vertices), repeat)
+    t_loop = median_time(lambda: [jax.block_until_ready(fb(clean.with_vertices(xs[i]), rings).vertices)
                                   for i in range(16)], repeat)
     return {"batched_s": t_batch, "loop_s": t_loop, "throughput_ratio": t_loop / t_batch}
 
@@ -171,11 +180,13 @@ def main() -> None:
     for r in rows:
         k = r["jaxmesh kernel"]
         print(f"\n{r['mesh']} (V={r['V']}): seconds per iteration, and peer / jaxmesh kernel")
-        for name in ("jaxmesh kernel", "jaxmesh laplacian", "Open3D filter_smooth_laplacian",
+        for name in ("jaxmesh kernel", "jaxmesh kernel, segment sums", "jaxmesh laplacian",
+                     "Open3D filter_smooth_laplacian",
                      "trimesh filter_laplacian", "numpy kernel"):
             print(f"  {name:32s} {r[name] * 1e3:9.2f} ms   {r[name] / k:6.2f}x")
         print(f"  kernel flow / umbrella (Laplacian) flow, per iteration: "
-              f"{r['jaxmesh kernel'] / r['jaxmesh laplacian']:.2f}x")
+              f"{r['jaxmesh kernel'] / r['jaxmesh laplacian']:.2f}x (segment sums: "
+              f"{r['jaxmesh kernel, segment sums'] / r['jaxmesh laplacian']:.2f}x)")
         if r["Open3D filter_smooth_laplacian"] != r["Open3D filter_smooth_laplacian"]:
             print("  (Open3D is not installed: its row is NaN)")
         print(f"  jaxmesh laplacian vs trimesh laplacian: trimesh / jaxmesh = "

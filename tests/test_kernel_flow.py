@@ -116,3 +116,40 @@ def test_one_pass_covariances_equal_the_direct_formula(noisy_spot):
     h = neighborhood_covariances(noisy, x, 0.3)           # sum (x_j - c_i)(x_j - c_i)^T + λI, direct
     _, diag = kernel_weights(noisy.with_vertices(x), x, 0.3)
     np.testing.assert_allclose(diag, (2 * np.pi) ** -1.5 / np.sqrt(np.linalg.det(np.asarray(h))), rtol=1e-9)
+
+
+def test_one_ring_tiers_cover_each_vertex_once_with_its_neighbours(noisy_spot):
+    from jaxmesh.denoise import METHODS, ring_tiers, vertex_rings
+
+    _, noisy = noisy_spot
+    rings = vertex_rings(noisy)
+    src, dst, deg = (np.asarray(a) for a in (noisy.src, noisy.dst, noisy.degree))
+    widths = [t.neighbors.shape[1] for t in rings.tiers]
+    assert widths == ring_tiers(np.maximum(deg, 1), pairs=False) and widths[-1] == deg.max()
+    seen = np.concatenate([np.asarray(t.vertices) for t in rings.tiers])
+    np.testing.assert_array_equal(np.sort(seen), np.arange(noisy.num_vertices))
+    np.testing.assert_array_equal(seen[np.asarray(rings.order)], np.arange(noisy.num_vertices))
+    for t in rings.tiers:
+        for v, row, m in zip(np.asarray(t.vertices), np.asarray(t.neighbors), np.asarray(t.mask)):
+            np.testing.assert_array_equal(row[m], dst[src == v])        # the mesh's own order
+            assert np.all(row[~m] == v)                                 # padding: the vertex itself
+    assert set(METHODS["kernel"].prepare(noisy)) == {"rings"}
+
+
+@pytest.mark.parametrize("variant,safeguard", [("random_walk", True), ("random_walk", False), ("paper", True)])
+def test_one_ring_tiers_step_equals_the_segment_sums(variant, safeguard):
+    """Degrees 2–9, a boundary and an isolated vertex; batched positions with one λ each."""
+    from jaxmesh.denoise import kernel_step, vertex_rings
+
+    clean = jaxmesh.normalize(jaxmesh.data.load_sample("spot", dtype=np.float64))
+    v = np.r_[np.asarray(clean.vertices), [[3.0, 3.0, 3.0]]]
+    f = np.asarray(clean.faces)[:-40]                           # cut a hole: boundary vertices
+    mesh = jaxmesh.Mesh.from_arrays(v, f, warn=False)
+    rings = vertex_rings(mesh)
+    assert np.asarray(mesh.degree)[-1] == 0 and len(rings.tiers) > 1
+    x = jnp.stack([mesh.vertices, mesh.vertices * 1.1 + 0.01 * jnp.sin(9 * mesh.vertices)])
+    lam = jnp.array([0.2, 0.9])
+    seg = kernel_step(mesh, x, lam, variant, safeguard)
+    tiered = jax.jit(lambda m, y, r: kernel_step(m, y, lam, variant, safeguard, rings=r))(mesh, x, rings)
+    np.testing.assert_allclose(tiered, seg, rtol=1e-12, atol=1e-15)
+    np.testing.assert_array_equal(tiered[:, -1], x[:, -1])      # the isolated vertex stays

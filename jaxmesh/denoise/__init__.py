@@ -25,6 +25,7 @@ from .kernel_flow import (
     kernel_weights,
     neighborhood_covariances,
 )
+from .vertex_rings import VertexRings, VertexTier, vertex_rings
 from .kde import kernel_density
 from .laplacian import hc_smoothing, laplacian_smoothing, taubin_smoothing
 from .normal_filtering import FaceRings, face_rings, filter_normals, normal_filtering, ring_sum
@@ -34,6 +35,7 @@ from .framed import denoise_in_unit_frame
 __all__ = [
     "METHODS", "DEPRECATED_NAMES", "Method", "Param", "as_method", "denoise", "diverged", "progress", "denoise_in_unit_frame",
     "VARIANTS", "kernel_diffusion", "kernel_step", "kernel_weights", "neighborhood_covariances",
+    "VertexRings", "VertexTier", "vertex_rings",
     "kernel_density",
     "anisotropic_diffusion", "laplacian_smoothing", "taubin_smoothing", "hc_smoothing", "cotangent_flow",
     "implicit_diffusion_step", "normal_filtering", "filter_normals", "face_rings", "FaceRings",

@@ -100,14 +100,16 @@ def _padded_rows(mat: sp.csr_matrix, fill: np.ndarray) -> tuple[np.ndarray, np.n
     return index, mask
 
 
-def ring_tiers(counts: np.ndarray, most: int = RING_TIERS) -> list[int]:
+def ring_tiers(counts: np.ndarray, most: int = RING_TIERS, pairs: bool = True) -> list[int]:
     """The tiers' widths k_1 < … < k_T (T ≤ ``most``, k_T the widest ring) minimising
-    Σ_t n_t · k_t(k_t + 1)/2 + T · c, n_t the faces whose ring size lies in (k_{t−1}, k_t]
-    and c the cost of a tier (module docstring).  Exhaustive over the ring sizes present.
+    Σ_t n_t · w(k_t) + T · c, n_t the rows whose ring size lies in (k_{t−1}, k_t], w(k) the
+    work per row (k(k + 1)/2 pairs, or k entries with ``pairs=False``) and c the cost of a
+    tier (module docstring).  Exhaustive over the ring sizes present.
 
     Arguments:
-        counts: each face's ring size, (F,) (at least 1).
+        counts: each row's ring size, (F,) (at least 1).
         most: the most tiers.
+        pairs: the work is quadratic in the ring (pairs) rather than linear (entries).
 
     Returns:
         The widths, increasing."""
@@ -119,7 +121,7 @@ def ring_tiers(counts: np.ndarray, most: int = RING_TIERS) -> list[int]:
     def cost(widths) -> float:
         total, start = len(widths) * _TIER_COST, 0
         for i in widths:                                       # widths as indices into sizes
-            total += (below[i + 1] - below[start]) * sizes[i] * (sizes[i] + 1) / 2
+            total += float((below[i + 1] - below[start]) * (sizes[i] * (sizes[i] + 1) / 2 if pairs else sizes[i]))
             start = i + 1
         return total
     last = sizes.size - 1
