@@ -133,7 +133,7 @@ def test_one_ring_tiers_cover_each_vertex_once_with_its_neighbours(noisy_spot):
         for v, row, m in zip(np.asarray(t.vertices), np.asarray(t.neighbors), np.asarray(t.mask)):
             np.testing.assert_array_equal(row[m], dst[src == v])        # the mesh's own order
             assert np.all(row[~m] == v)                                 # padding: the vertex itself
-    assert set(METHODS["kernel"].prepare(noisy)) == {"rings"}
+    assert METHODS["kernel"].prepare(noisy) == {}      # optional: padded batches of meshes still tune
 
 
 @pytest.mark.parametrize("variant,safeguard", [("random_walk", True), ("random_walk", False), ("paper", True)])

@@ -27,7 +27,6 @@ from .bilateral import bilateral_denoising
 from .curvature import cotangent_flow
 from .geometric_diffusion import geometric_diffusion
 from .kernel_flow import kernel_diffusion
-from .vertex_rings import vertex_rings
 from .laplacian import BOUNDARY_MODES, hc_smoothing, laplacian_smoothing, taubin_smoothing
 from .bilateral_normal import bilateral_normal_filtering
 from .face_graph import face_graph
@@ -196,8 +195,6 @@ METHODS: dict[str, Method] = {
             "variant": Param("random_walk", "choice", "update rule", choices=("random_walk", "paper")),
             "safeguard": Param(True, "choice", "cap the random-walk step (never diverges)",
                                choices=(True, False)),
-            "rings": Param(None, "aux", "vertex_rings(mesh), built on the host; pass it to run the one-ring "
-                           "tiers under jit", build=vertex_rings),
         }, "multivariate kernel diffusion (the thesis, ch.2)", "Tarmissi 2010, ch.2 eq.6-12"),
         Method("cauchy_diffusion", anisotropic_diffusion, {
             "dt": Param(0.25, "continuous", "step size", (0.01, 0.5), True),
