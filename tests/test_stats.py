@@ -247,7 +247,7 @@ def test_distance_histogram_counts_what_numpy_counts_on_its_final_edges():
 
 
 def test_mesh_statistics_geodesics_are_histograms_of_the_distances():
-    mesh = jaxmesh.load(shared_mesh_path("cow.ply"))
+    mesh = jaxmesh.load(shared_mesh_path("eight.ply"))
     st = stats.mesh_statistics(mesh, sources=12, seed=0, geodesics=("edges",))
     h = st["geodesics"]["edges"]
     d = stats.graph_distances(mesh, st["sources"])

@@ -84,10 +84,14 @@ def _symmetric_adjugate(h):
 
 
 def _quadratic(co, d):
-    """d^T C d for symmetric C given by its 6 distinct entries."""
-    dx, dy, dz = d[..., 0], d[..., 1], d[..., 2]
-    return (co[..., 0] * dx * dx + co[..., 1] * dy * dy + co[..., 2] * dz * dz
-            + 2 * (co[..., 3] * dx * dy + co[..., 4] * dx * dz + co[..., 5] * dy * dz))
+    """d^T C d for symmetric C given by its 6 distinct entries (last axis of ``co``)."""
+    return _quadratic_parts([co[..., k] for k in range(6)], d[..., 0], d[..., 1], d[..., 2])
+
+
+def _quadratic_parts(c, dx, dy, dz):
+    """d^T C d from the 6 distinct entries of C (xx, yy, zz, xy, xz, yz) and d's components."""
+    return (c[0] * dx * dx + c[1] * dy * dy + c[2] * dz * dz
+            + 2 * (c[3] * dx * dy + c[4] * dx * dz + c[5] * dy * dz))
 
 
 def _kernel_parts(mesh: Mesh, x: Float[Array, "*batch V 3"], lam):
@@ -102,7 +106,7 @@ def _kernel_parts(mesh: Mesh, x: Float[Array, "*batch V 3"], lam):
     delta = x[..., mesh.dst, :] - x[..., mesh.src, :]
     sums = segment_sum_rows(_moment_columns(delta), mesh.src, mesh.num_vertices)
     d = lift(mesh.degree.astype(x.dtype)[:, None], x.ndim)
-    norm, inverse = _norm_and_inverse(sums, d, lam, x.dtype)
+    norm, inverse = _norm_and_inverse(sums, d, lift(jnp.asarray(lam, x.dtype)[..., None], x.ndim - 1), x.dtype)
     q = _quadratic(inverse[..., mesh.src, :], delta)      # H_i^{-1}, per vertex: one 6-column gather
     return norm, jnp.exp(-0.5 * q), delta
 
@@ -115,41 +119,48 @@ def _moment_columns(delta):
 
 def _norm_and_inverse(sums, d, lam, dtype):
     """(det(H_i)^{-1/2} (2π)^{-3/2}, H_i^{-1} as 6 entries) from the summed moment columns
-    and the degree d (…, 1): H_i = Σ δδ^T − d δ̄δ̄^T + λI (see :func:`_kernel_parts`)."""
+    (…, 9), the degree d (…, 1) and λ shaped to broadcast with (…): H_i = Σ δδ^T − d δ̄δ̄^T + λI
+    (see :func:`_kernel_parts`)."""
     mean = safe_divide(sums[..., 6:], d)
     mx, my, mz = mean[..., 0], mean[..., 1], mean[..., 2]
     outer = jnp.stack([mx * mx, my * my, mz * mz, mx * my, mx * mz, my * mz], axis=-1)
-    lam = lift(jnp.asarray(lam, dtype)[..., None, None], sums.ndim)
-    h = sums[..., :6] - d * outer + lam * lift(jnp.array([1, 1, 1, 0, 0, 0], dtype), sums.ndim)
+    h = sums[..., :6] - d * outer + lam[..., None] * lift(jnp.array([1, 1, 1, 0, 0, 0], dtype), sums.ndim)
     det, co = _symmetric_adjugate(h)
     det = jnp.maximum(det, jnp.finfo(dtype).tiny)
     return (2 * jnp.pi) ** -1.5 * jax.lax.rsqrt(det), co / det[..., None]
 
 
 def _tier_step(x, y, tier: VertexTier, lam, safeguard: bool):
-    """The new positions of one tier's vertices (*batch, W, 3): the step of
-    :func:`kernel_step` as sums over the tier's k neighbour slots, written out slot by
-    slot (k gathers of (W, 3) and elementwise sums: on CPU several times faster than a
-    reduction over a (W, k, 3) array).  Padding is the vertex itself (δ = 0) with its
-    weight masked.  ``y`` = x/sqrt(d) for the paper's update, None for the random walk."""
-    xi = x[..., tier.vertices, :]
+    """The new positions of one tier's vertices, vertex-major: ``x`` and the result are
+    (V, 3, *batch) and (W, 3, *batch), so every gather takes whole rows whatever the batch.
+    The step of :func:`kernel_step` as sums over the tier's k neighbour slots, written out
+    slot by slot (k gathers of rows and elementwise sums: on CPU several times faster than
+    a reduction over a (W, k, 3) array).  Padding is the vertex itself (δ = 0) with its
+    weight masked.  ``y`` = x/sqrt(d) for the paper's update, None for the random walk;
+    ``lam`` is a scalar or (*batch,)."""
+    def rows(a):                                 # (W,) -> (W, 1, ..., 1) against (W, *batch)
+        return jnp.reshape(a, a.shape + (1,) * (x.ndim - 2))
+
+    xi = x[tier.vertices]
     slots = range(tier.neighbors.shape[1])
-    delta = [x[..., tier.neighbors[:, j], :] - xi for j in slots]          # k × (*batch, W, 3)
-    d = lift(jnp.sum(tier.mask, axis=-1).astype(x.dtype)[:, None], x.ndim)  # (*batch, W, 1)
+    delta = [x[tier.neighbors[:, j]] - xi for j in slots]                  # k × (W, 3, *batch)
+    d = rows(jnp.sum(tier.mask, axis=-1).astype(x.dtype))                   # (W, 1, …)
     pairs = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
-    cols = [sum(g[..., a] * g[..., b] for g in delta) for a, b in pairs] + [sum(g[..., a] for g in delta)
-                                                                          for a in range(3)]
-    norm, inverse = _norm_and_inverse(jnp.stack(cols, axis=-1), d, lam, x.dtype)
-    p = [jnp.where(tier.mask[:, j], jnp.exp(-0.5 * _quadratic(inverse, delta[j])), 0) for j in slots]
+    cols = [sum(g[:, a] * g[:, b] for g in delta) for a, b in pairs] + [sum(g[:, a] for g in delta)
+                                                                      for a in range(3)]
+    norm, inverse = _norm_and_inverse(jnp.stack(cols, axis=-1), d[..., None], lift(lam, x.ndim - 1), x.dtype)
+    c = [inverse[..., k] for k in range(6)]
+    p = [jnp.where(rows(tier.mask[:, j]), jnp.exp(-0.5 * _quadratic_parts(c, g[:, 0], g[:, 1], g[:, 2])), 0)
+         for j, g in zip(slots, delta)]                                       # k × (W, *batch)
     if y is not None:
-        yi = y[..., tier.vertices, :]
-        step = sum(pj[..., None] * (y[..., tier.neighbors[:, j], :] - yi) for j, pj in zip(slots, p))
-        return xi + safe_divide(jnp.ones_like(d), jnp.sqrt(d)) * norm[..., None] * step
-    pull = sum(pj[..., None] * g for pj, g in zip(p, delta))
-    den = d[..., 0] / norm
+        yi = y[tier.vertices]
+        step = sum(pj[:, None] * (y[tier.neighbors[:, j]] - yi) for j, pj in zip(slots, p))
+        return xi + (safe_divide(jnp.ones_like(d), jnp.sqrt(d)) * norm)[:, None] * step
+    pull = sum(pj[:, None] * g for pj, g in zip(p, delta))
+    den = d / norm
     if safeguard:
         den = jnp.maximum(den, sum(p))
-    return xi + safe_divide(pull, den[..., None])
+    return xi + safe_divide(pull, den[:, None])
 
 def kernel_weights(mesh: Mesh, x: Float[Array, "*batch V 3"], lam):
     """(κ_ij per directed edge (*batch, H), κ_ii per vertex (*batch, V)) — the
@@ -190,10 +201,11 @@ def kernel_step(
     if variant not in VARIANTS:
         raise ValueError(f"variant must be one of {VARIANTS}, got {variant!r}")
     d = lift(mesh.degree.astype(x.dtype), x.ndim - 1)
-    if rings is not None:
+    if rings is not None:      # vertex-major (V, 3, *batch) for the tiers, then back
         y = safe_divide(jnp.ones_like(d), jnp.sqrt(d))[..., None] * x if variant == "paper" else None
-        parts = [_tier_step(x, y, tier, lam, safeguard) for tier in rings.tiers]
-        return jnp.concatenate(parts, axis=-2)[..., rings.order, :]
+        xt, yt = (None if a is None else jnp.moveaxis(a, (-2, -1), (0, 1)) for a in (x, y))
+        parts = [_tier_step(xt, yt, tier, jnp.asarray(lam, x.dtype), safeguard) for tier in rings.tiers]
+        return jnp.moveaxis(jnp.concatenate(parts, axis=0)[rings.order], (0, 1), (-2, -1))
     norm, p, diff = _kernel_parts(mesh, x, lam)
     if variant == "paper":
         s = safe_divide(jnp.ones_like(d), jnp.sqrt(d))[..., None]
