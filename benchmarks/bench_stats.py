@@ -5,7 +5,8 @@
 * clustering + average neighbour degree + degree assortativity on the bunny
   subdivided twice (~556k vertices), graph already built, against
   python-igraph (C core) and networkx, in the same run (jaxmesh warm; its
-  one-off XLA compile is reported separately);
+  one-off XLA compile is reported separately); and clustering + assortativity
+  alone against networkit (OpenMP, all cores; a ``[bench]`` extra), best of five;
 * geodesic distance distributions from 200 seeded sources on the bunny: edge
   graph, kNN graph and heat method, and potpourri3d's heat method as a peer;
 * ``--memory``: only the peak resident memory and wall time of the command
@@ -39,6 +40,37 @@ def timed(fn, repeat=3):
         out = fn()
         best = min(best, time.perf_counter() - t)
     return best, out
+
+
+def networkit_peer(big: jaxmesh.Mesh) -> None:
+    """Clustering + degree assortativity, jaxmesh (on its graph view) against networkit."""
+    try:
+        import networkit as nk
+    except ImportError:
+        print("  networkit not installed (pip install '.[bench]'): no peer timing")
+        return
+    from jaxmesh.stats._graph import graph_view
+
+    view = graph_view(big)
+    e = np.asarray(big.edges)
+    g = nk.GraphFromCoo((np.ones(len(e)), (e[:, 0].astype(np.uint64), e[:, 1].astype(np.uint64))),
+                        n=big.num_vertices, directed=False)
+
+    def theirs():
+        lcc = nk.centrality.LocalClusteringCoefficient(g, turbo=True)
+        lcc.run()
+        deg = nk.centrality.DegreeCentrality(g)
+        deg.run()
+        nk.correlation.Assortativity(g, deg.scores()).run()
+        return np.array(lcc.scores())
+
+    ours = lambda: (stats.clustering(view), stats.degree_assortativity(view))  # noqa: E731
+    ours()
+    t_ours, (c, _) = timed(ours, 5)
+    t_nk, c_nk = timed(theirs, 5)
+    assert np.allclose(c, c_nk)
+    print(f"  clustering + assortativity: jaxmesh {t_ours:.3f} s, networkit {t_nk:.3f} s "
+          f"({nk.getMaxNumberOfThreads()} threads) -> networkit / jaxmesh = {t_nk / t_ours:.2f}x")
 
 
 def cli_memory() -> None:
@@ -91,6 +123,7 @@ def main() -> None:
     t_ig, (ci, ki, ri) = timed(igraph_stats)
     assert np.allclose(ci, c) and np.allclose(ki, knn) and np.isclose(ri, r)
     print(f"  igraph    {t_ig:7.3f} s   -> jaxmesh is {t_ig / t_ours:.2f}x faster")
+    networkit_peer(big)
     if not args.no_networkx:
         import networkx as nx
 

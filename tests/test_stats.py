@@ -255,3 +255,6 @@ def test_mesh_statistics_geodesics_are_histograms_of_the_distances():
     keep[np.arange(12), st["sources"]] = False
     assert isinstance(h, stats.DistanceHistogram) and h.count == keep.sum()
     assert st["summary"]["geodesic_edges_mean"] == pytest.approx(d[keep].mean(), rel=1e-12)
+    with pytest.warns(jaxmesh.MeshWarning, match="every vertex is a source"):      # said, not clamped silently
+        every = stats.mesh_statistics(mesh, sources=10**9, geodesics=("edges",), spectrum_k=2)
+    assert every["summary"]["sources"] == mesh.num_vertices

@@ -4,11 +4,12 @@ clustering, geodesic distances)."""
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable
 
 import numpy as np
 
-from ..mesh import Mesh
+from ..mesh import Mesh, MeshWarning
 from ._graph import graph_view
 from .clustering import clustering, clustering_by_degree, thesis_clustering
 from .degree import (assortativity_function, average_degree, degree_assortativity, degree_distribution,
@@ -26,9 +27,10 @@ def mesh_statistics(mesh: Mesh, sources: int = 200, seed: int = 0, knn: int = 8,
 
     Arguments:
         mesh: the mesh (single).
-        sources: geodesic sources, sampled from ``seed``.
+        sources: geodesic sources, sampled from ``seed`` (more than V: every vertex, with a
+            :class:`~jaxmesh.MeshWarning`; the memory stays that of a few sources).
         seed: the seed of the source sample.
-        knn: neighbours of the kNN graph.
+        knn: neighbours of the kNN graph (more than V − 1: the complete graph, with a warning).
         spectrum_k: exact eigenvalues at each end of the spectra (default None: the whole
             spectrum, exact up to 3000 vertices, else estimated; :func:`laplacian_spectrum`).
         geodesics: the geodesic methods: ``"edges"``, ``"knn"``, ``"heat"``.
@@ -43,6 +45,13 @@ def mesh_statistics(mesh: Mesh, sources: int = 200, seed: int = 0, knn: int = 8,
     for name, value in (("sources", sources), ("knn", knn)):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
             raise ValueError(f"{name} must be a positive int, got {value!r}")
+    n = mesh.num_vertices
+    if sources > n:
+        warnings.warn(f"sources={sources} is more than the mesh's {n} vertices: every vertex is a source",
+                      MeshWarning, stacklevel=2)
+    if knn > n - 1 and "knn" in geodesics:
+        warnings.warn(f"knn={knn} is more than the other {n - 1} vertices: the kNN graph is complete",
+                      MeshWarning, stacklevel=2)
     say("degree, assortativity and clustering")
     graph = graph_view(mesh)      # the host edge graph, once for every statistic below
     ks, pk = degree_distribution(graph)
