@@ -258,3 +258,6 @@ def test_mesh_statistics_geodesics_are_histograms_of_the_distances():
     with pytest.warns(jaxmesh.MeshWarning, match="every vertex is a source"):      # said, not clamped silently
         every = stats.mesh_statistics(mesh, sources=10**9, geodesics=("edges",), spectrum_k=2)
     assert every["summary"]["sources"] == mesh.num_vertices
+    ico = trimesh.creation.icosphere(0)                  # 12 vertices: the defaults lower quietly
+    small = stats.mesh_statistics(jaxmesh.Mesh.from_arrays(ico.vertices, ico.faces))   # warnings are errors here
+    assert small["summary"]["sources"] == 12 < stats.SOURCES

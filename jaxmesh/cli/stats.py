@@ -8,7 +8,7 @@ import sys
 import numpy as np
 
 from ..io import write_bytes_atomic
-from ..stats import mesh_statistics, plot_statistics
+from ..stats import KNN, SOURCES, mesh_statistics, plot_statistics
 from ._common import CLIError, check_output, mesh_arguments, mesh_source, print_record
 
 
@@ -16,9 +16,10 @@ def configure(p) -> None:
     mesh_arguments(p)
     p.add_argument("--plot", metavar="PNG", help="draw the six-panel figure (one mesh only)")
     p.add_argument("--force", action="store_true", help="replace the --plot file if it exists")
-    p.add_argument("--sources", type=int, default=200, help="geodesic sources (default 200)")
+    p.add_argument("--sources", type=int, default=None,
+                   help=f"geodesic sources (default {SOURCES}, or every vertex of a smaller mesh)")
     p.add_argument("--seed", type=int, default=0, help="seed of the source sample (default 0)")
-    p.add_argument("--knn", type=int, default=8, help="neighbours of the kNN graph (default 8)")
+    p.add_argument("--knn", type=int, default=None, help=f"neighbours of the kNN graph (default {KNN})")
 
 
 def _stage(label: str):

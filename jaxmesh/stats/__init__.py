@@ -10,7 +10,7 @@ from .geodesic import (HISTOGRAM_BINS, DistanceHistogram, distance_blocks, dista
                        graph_distances, heat_geodesics, sample_sources)
 from .density import SpectralDensity, density_quantiles, spectral_density, spectrum_distance
 from .spectrum import laplacian_spectrum
-from .summary import mesh_statistics, plot_statistics
+from .summary import KNN, SOURCES, mesh_statistics, plot_statistics
 
 __all__ = [
     "average_degree", "degree_distribution", "neighbor_connectivity", "assortativity_function",
@@ -19,5 +19,5 @@ __all__ = [
     "DistanceHistogram", "distance_histogram", "HISTOGRAM_BINS",
     "laplacian_spectrum",
     "SpectralDensity", "spectral_density", "density_quantiles", "spectrum_distance",
-    "mesh_statistics", "plot_statistics",
+    "mesh_statistics", "plot_statistics", "SOURCES", "KNN",
 ]

@@ -17,20 +17,26 @@ from .degree import (assortativity_function, average_degree, degree_assortativit
 from .geodesic import distance_histogram, sample_sources
 from .spectrum import DENSE_MAX, laplacian_spectrum
 
-__all__ = ["mesh_statistics", "plot_statistics"]
+__all__ = ["mesh_statistics", "plot_statistics", "SOURCES", "KNN"]
 
 
-def mesh_statistics(mesh: Mesh, sources: int = 200, seed: int = 0, knn: int = 8,
+#: the defaults of :func:`mesh_statistics`'s ``sources`` and ``knn`` (lowered quietly on a small mesh)
+SOURCES, KNN = 200, 8
+
+
+def mesh_statistics(mesh: Mesh, sources: int | None = None, seed: int = 0, knn: int | None = None,
                     spectrum_k: int | None = None, geodesics: tuple[str, ...] = ("edges", "knn", "heat"),
                     progress: Callable[[str], None] | None = None) -> dict:
     """All ch.5 statistics of ``mesh``.
 
     Arguments:
         mesh: the mesh (single).
-        sources: geodesic sources, sampled from ``seed`` (more than V: every vertex, with a
-            :class:`~jaxmesh.MeshWarning`; the memory stays that of a few sources).
+        sources: geodesic sources, sampled from ``seed`` (default :data:`SOURCES`, at most V;
+            a given count above V: every vertex, with a :class:`~jaxmesh.MeshWarning`; the
+            memory stays that of a few sources).
         seed: the seed of the source sample.
-        knn: neighbours of the kNN graph (more than V − 1: the complete graph, with a warning).
+        knn: neighbours of the kNN graph (default :data:`KNN`, at most V − 1; a given count
+            above V − 1: the complete graph, with a warning).
         spectrum_k: exact eigenvalues at each end of the spectra (default None: the whole
             spectrum, exact up to 3000 vertices, else estimated; :func:`laplacian_spectrum`).
         geodesics: the geodesic methods: ``"edges"``, ``"knn"``, ``"heat"``.
@@ -43,13 +49,17 @@ def mesh_statistics(mesh: Mesh, sources: int = 200, seed: int = 0, knn: int = 8,
         no (S, V) array is held)."""
     say = progress or (lambda stage: None)
     for name, value in (("sources", sources), ("knn", knn)):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+        if value is not None and (isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1):
             raise ValueError(f"{name} must be a positive int, got {value!r}")
     n = mesh.num_vertices
-    if sources > n:
+    if sources is None:
+        sources = min(SOURCES, n)
+    elif sources > n:
         warnings.warn(f"sources={sources} is more than the mesh's {n} vertices: every vertex is a source",
                       MeshWarning, stacklevel=2)
-    if knn > n - 1 and "knn" in geodesics:
+    if knn is None:
+        knn = KNN
+    elif knn > n - 1 and "knn" in geodesics:
         warnings.warn(f"knn={knn} is more than the other {n - 1} vertices: the kNN graph is complete",
                       MeshWarning, stacklevel=2)
     say("degree, assortativity and clustering")
