@@ -162,6 +162,7 @@ def _tier_step(x, y, tier: VertexTier, lam, safeguard: bool):
         den = jnp.maximum(den, sum(p))
     return xi + safe_divide(pull, den[:, None])
 
+
 def kernel_weights(mesh: Mesh, x: Float[Array, "*batch V 3"], lam):
     """(κ_ij per directed edge (*batch, H), κ_ii per vertex (*batch, V)) — the
     off-diagonal and diagonal entries of the kernel matrix 𝒦 (eq.10):
