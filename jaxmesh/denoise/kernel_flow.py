@@ -104,17 +104,17 @@ def _kernel_parts(mesh: Mesh, x: Float[Array, "*batch V 3"], lam):
     the subtraction does not cancel at large coordinates).  det is floored at the
     dtype's smallest normal number so that an underflow cannot give inf/NaN."""
     delta = x[..., mesh.dst, :] - x[..., mesh.src, :]
-    sums = segment_sum_rows(_moment_columns(delta), mesh.src, mesh.num_vertices)
+    sums = segment_sum_rows(jnp.stack(_moment_parts(delta[..., 0], delta[..., 1], delta[..., 2]), axis=-1),
+                            mesh.src, mesh.num_vertices)
     d = lift(mesh.degree.astype(x.dtype)[:, None], x.ndim)
     norm, inverse = _norm_and_inverse(sums, d, lift(jnp.asarray(lam, x.dtype)[..., None], x.ndim - 1), x.dtype)
     q = _quadratic(inverse[..., mesh.src, :], delta)      # H_i^{-1}, per vertex: one 6-column gather
     return norm, jnp.exp(-0.5 * q), delta
 
 
-def _moment_columns(delta):
+def _moment_parts(dx, dy, dz) -> list:
     """The 6 + 3 columns δδ^T (xx, yy, zz, xy, xz, yz) and δ whose sums over j give H_i."""
-    dx, dy, dz = delta[..., 0], delta[..., 1], delta[..., 2]
-    return jnp.stack([dx * dx, dy * dy, dz * dz, dx * dy, dx * dz, dy * dz, dx, dy, dz], axis=-1)
+    return [dx * dx, dy * dy, dz * dz, dx * dy, dx * dz, dy * dz, dx, dy, dz]
 
 
 def _norm_and_inverse(sums, d, lam, dtype):
@@ -145,9 +145,7 @@ def _tier_step(x, y, tier: VertexTier, lam, safeguard: bool):
     slots = range(tier.neighbors.shape[1])
     delta = [x[tier.neighbors[:, j]] - xi for j in slots]                  # k × (W, 3, *batch)
     d = rows(jnp.sum(tier.mask, axis=-1).astype(x.dtype))                   # (W, 1, …)
-    pairs = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
-    cols = [sum(g[:, a] * g[:, b] for g in delta) for a, b in pairs] + [sum(g[:, a] for g in delta)
-                                                                      for a in range(3)]
+    cols = [sum(col) for col in zip(*(_moment_parts(g[:, 0], g[:, 1], g[:, 2]) for g in delta))]
     norm, inverse = _norm_and_inverse(jnp.stack(cols, axis=-1), d[..., None], lift(lam, x.ndim - 1), x.dtype)
     c = [inverse[..., k] for k in range(6)]
     p = [jnp.where(rows(tier.mask[:, j]), jnp.exp(-0.5 * _quadratic_parts(c, g[:, 0], g[:, 1], g[:, 2])), 0)

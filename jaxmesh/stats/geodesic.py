@@ -233,10 +233,9 @@ def distance_histogram(mesh: MeshOrView, sources, method: str = "heat", k: int =
         n = total
         x = np.maximum(x, 0.0)        # the heat method's rare tiny negatives (> −0.2% of the size) in bin 0
         peak = float(x.max())
-        while peak >= top and peak > 0:   # a power of two strictly above every distance
-            if top == 0:
-                top = float(2.0 ** np.floor(np.log2(peak)))
-                continue
+        if not top and peak:              # the first range: the power of two just above the largest distance
+            top = float(2.0 ** (np.floor(np.log2(peak)) + 1))
+        while top and peak >= top:        # a block beyond it: double the range, merging bins in pairs
             counts, top = np.r_[counts.reshape(-1, 2).sum(axis=1), np.zeros(bins // 2, np.int64)], top * 2
         counts += np.bincount((x * (bins / top)).astype(np.int64) if top else np.zeros(x.size, np.int64),
                               minlength=bins)

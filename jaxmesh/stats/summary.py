@@ -53,7 +53,7 @@ def mesh_statistics(mesh: Mesh, sources: int | None = None, seed: int = 0, knn: 
             raise ValueError(f"{name} must be a positive int, got {value!r}")
     n = mesh.num_vertices
     if sources is None:
-        sources = min(SOURCES, n)
+        sources = SOURCES                 # sample_sources takes every vertex of a smaller mesh
     elif sources > n:
         warnings.warn(f"sources={sources} is more than the mesh's {n} vertices: every vertex is a source",
                       MeshWarning, stacklevel=2)
