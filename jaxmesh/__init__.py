@@ -18,6 +18,7 @@ __version__ = "0.1.0"
 _NAMES = {
     "Mesh": "mesh", "MeshWarning": "mesh",
     "MeshFileError": "io", "load": "io", "save": "io",
+    "MeshAttributes": "attributes", "read_attributes": "attributes",
     "add_noise": "noise", "add_impulsive_noise": "noise",
     "normalize": "transforms",
     "mesh_info": "topology",
@@ -27,7 +28,7 @@ _NAMES = {
 }
 
 #: the public modules and subpackages, attributes of the package
-_MODULES = ("batch", "compiler", "compress", "data", "dataset", "denoise", "geodesics", "geometry", "graph", "hash",
+_MODULES = ("attributes", "batch", "compiler", "compress", "data", "dataset", "denoise", "geodesics", "geometry", "graph", "hash",
             "intrinsic", "io", "linalg", "mesh", "metrics", "noise", "operators", "render", "sparse", "spectral",
             "stats", "topology", "transforms", "tune", "vf", "view")
 
@@ -50,6 +51,7 @@ def __dir__():
 
 
 if TYPE_CHECKING:   # what static tools see (explicit re-exports); at run time every name comes through __getattr__
+    from . import attributes as attributes
     from . import batch as batch
     from . import compiler as compiler
     from . import compress as compress
@@ -76,6 +78,8 @@ if TYPE_CHECKING:   # what static tools see (explicit re-exports); at run time e
     from . import tune as tune
     from . import vf as vf
     from . import view as view
+    from .attributes import MeshAttributes as MeshAttributes
+    from .attributes import read_attributes as read_attributes
     from .geometry import bounding_box_diagonal as bounding_box_diagonal
     from .geometry import corner_angles as corner_angles
     from .geometry import edge_lengths as edge_lengths

@@ -32,6 +32,7 @@ import numpy as np
 
 from . import _meshtext as _text
 from . import _ply
+from .attributes import MeshAttributes, rewrite
 from .mesh import Mesh, MeshWarning
 
 __all__ = ["load", "save", "MeshFileError", "SUPPORTED_FORMATS", "merge_duplicate_vertices"]
@@ -70,7 +71,7 @@ def _read_ply(p: Path):
 
     try:
         tm = trimesh.load(p, file_type="ply", process=False, maintain_order=True, force="mesh",
-                          skip_materials=True)
+                          skip_materials=True, fix_texture=False)    # per-corner UVs must not split vertices
     except Exception as err:  # trimesh raises many types for bad files
         raise MeshFileError(f"{p}: cannot read as PLY ({type(err).__name__}: {err})") from err
     vertices = np.asarray(getattr(tm, "vertices", np.zeros((0, 3))), np.float64)
@@ -269,17 +270,22 @@ def write_bytes_atomic(path: str | os.PathLike, data: bytes, *, overwrite: bool 
     return p
 
 
-def save(mesh: Mesh, path: str | os.PathLike, *, overwrite: bool = False, file_type: str | None = None) -> Path:
+def save(mesh: Mesh, path: str | os.PathLike, *, overwrite: bool = False, file_type: str | None = None,
+         attributes: MeshAttributes | None = None) -> Path:
     """Write ``mesh`` (single, unbatched) to OBJ, PLY (binary), OFF or STL.
 
     The file is written to a temporary name in the same directory and moved into
-    place atomically.
+    place atomically.  With ``attributes`` (:func:`jaxmesh.read_attributes` of the file
+    the mesh was read from) the output is that file with the mesh's positions: colours,
+    texture coordinates, materials and every other byte kept, normals recomputed
+    (:mod:`jaxmesh.attributes`); its format must be the file's.
 
     Arguments:
         mesh: the mesh to write.
         path: the file; its suffix names the format unless ``file_type`` does.
         overwrite: replace an existing file (default: an existing file is an error).
         file_type: ``"obj"``, ``"ply"``, ``"off"`` or ``"stl"``, overriding the suffix.
+        attributes: what to keep of the input file (default: positions and triangles only).
 
     Returns:
         The path written."""
@@ -298,7 +304,15 @@ def save(mesh: Mesh, path: str | os.PathLike, *, overwrite: bool = False, file_t
     if not np.isfinite(vertices).all():
         raise ValueError("refusing to save a mesh with non-finite vertex coordinates")
     faces = np.asarray(mesh.faces, dtype=np.int64)
-    if fmt == "ply":
+    if attributes is not None:
+        if attributes.format != fmt:
+            raise MeshFileError(f"{p}: the attributes kept are those of a {attributes.format.upper()} file; "
+                                f"{fmt.upper()} cannot hold them (write .{attributes.format})")
+        try:
+            data = rewrite(attributes, mesh)
+        except ValueError as err:
+            raise MeshFileError(f"{p}: {err}") from err
+    elif fmt == "ply":
         data = _binary_ply(vertices, faces)
     else:
         try:

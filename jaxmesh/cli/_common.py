@@ -13,8 +13,8 @@ from collections.abc import Callable
 
 from .. import data
 
-__all__ = ["CLIError", "io_arguments", "mesh_arguments", "load_input", "mesh_source", "check_output",
-           "positional_output", "names_a_mesh_format", "print_record", "with_caveats", "view_argument", "check_view",
+__all__ = ["CLIError", "io_arguments", "mesh_arguments", "load_input", "input_attributes", "mesh_source",
+           "check_output", "positional_output", "names_a_mesh_format", "print_record", "with_caveats", "view_argument", "check_view",
            "write_view"]
 
 
@@ -49,6 +49,31 @@ def load_input(args):
     from ..io import load
 
     return args.input, load(args.input)
+
+
+def input_attributes(source: str | None, out: str):
+    """What the file ``source`` carries besides positions and triangles, to keep in ``out``
+    (:func:`jaxmesh.read_attributes`), or None: nothing to keep, no file (a sample), or ``out``'s
+    format cannot hold it, which a ``jaxmesh: warning:`` line says."""
+    if source is None:
+        return None
+    from ..attributes import read_attributes
+
+    try:
+        attributes = read_attributes(source)
+    except (OSError, ValueError) as err:
+        print(f"jaxmesh: warning: {source}: only positions and triangles are written to {out} ({err})",
+              file=sys.stderr)
+        return None
+    if attributes is None:
+        return None
+    fmt = Path(out).suffix.lstrip(".").lower()
+    if fmt != attributes.format:
+        print(f"jaxmesh: warning: {source} carries {', '.join(attributes.kinds)}; {out} is {fmt.upper()}, which "
+              f"cannot hold them, so only positions and triangles are written (write .{attributes.format} to keep "
+              "them)", file=sys.stderr)
+        return None
+    return attributes
 
 
 def mesh_source(args) -> list[tuple[str, Callable]]:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import sys
 
 from ..io import load, save
+from ._common import input_attributes
 
 
 def configure(p) -> None:
@@ -17,6 +18,7 @@ def configure(p) -> None:
 
 def run(args) -> int:
     mesh = load(args.input, merge_duplicates=args.merge_duplicates or None)
-    save(mesh, args.output, overwrite=args.force)
+    keep = None if args.merge_duplicates else input_attributes(args.input, args.output)
+    save(mesh, args.output, overwrite=args.force, attributes=keep)
     print(f"wrote {args.output}: {mesh.num_vertices} vertices, {mesh.num_faces} faces", file=sys.stderr)
     return 0

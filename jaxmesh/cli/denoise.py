@@ -14,7 +14,8 @@ from ..tune import choose_denoiser, denoise_with_tuning
 from ..tune.auto import NOISE_MODELS
 from ..tune.patches import PATCH_COUNT, PATCH_FACTOR, SEARCH_VERTICES
 from .. import data
-from ._common import CLIError, check_output, check_view, load_input, positional_output, view_argument, with_caveats, write_view
+from ._common import (CLIError, check_output, check_view, input_attributes, load_input, positional_output,
+                      view_argument, with_caveats, write_view)
 from ._dataset import dataset_arguments, run_dataset
 from ._denoise_report import progress_bar, report_auto, report_run
 from ._flags import add_parameter_flags, given_parameters, list_methods
@@ -112,10 +113,11 @@ def run(args) -> int:
         raise CLIError(f"{flags} needs a named method (--method NAME); --method auto chooses its own parameters")
     if args.method == "auto":
         label, mesh, reference, out = _load_pair(args)
+        keep = input_attributes(args.input, out)
         start = time.perf_counter()
         choice, caveats = with_caveats(choose_denoiser, mesh, sigma=args.noise_sigma,
                                        noise_model=args.noise_model or "auto", search_vertices=args.search_vertices)
-        save(choice.mesh, out, overwrite=args.force)
+        save(choice.mesh, out, overwrite=args.force, attributes=keep)
         _view(args, label, mesh, out, choice.mesh, reference)
         return report_auto(args, label, out, mesh, reference, choice, caveats, time.perf_counter() - start)
     if args.noise_model is not None:
@@ -125,12 +127,13 @@ def run(args) -> int:
     if args.raw_units and (args.tune or "auto" in given.values()):
         raise CLIError("tuning runs in the unit-diagonal frame; drop --raw-units")
     label, mesh, reference, out = _load_pair(args)
+    keep = input_attributes(args.input, out)
     start = time.perf_counter()
     tuning = args.tune or "auto" in given.values()
     total = given.get("iterations", as_method(args.method).defaults().get("iterations", 1))
     with progress_bar(args.method, total) if not tuning else contextlib.nullcontext():
         result, caveats = with_caveats(denoise_with_tuning, mesh, args.method, given, tune_all=args.tune,
                                        reference=reference, sigma=args.noise_sigma, unit_frame=not args.raw_units)
-    save(result.mesh, out, overwrite=args.force)
+    save(result.mesh, out, overwrite=args.force, attributes=keep)
     _view(args, label, mesh, out, result.mesh, reference)
     return report_run(args, label, out, mesh, reference, result, caveats, time.perf_counter() - start)

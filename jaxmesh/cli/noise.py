@@ -8,7 +8,7 @@ import sys
 
 from ..io import save
 from ..noise import IMPULSIVE_FRACTION, add_noise
-from ._common import CLIError, check_output, io_arguments, load_input, positional_output
+from ._common import CLIError, check_output, input_attributes, io_arguments, load_input, positional_output
 
 #: --model's choices
 MODELS = ("gaussian", "impulsive")
@@ -40,10 +40,11 @@ def run(args) -> int:
         raise CLIError(f"--fraction must be in [0, 1], got {args.fraction}")
     label, mesh = load_input(args)
     check_output(out, args.force, mesh=True)
+    keep = input_attributes(args.input, out)
     impulsive = args.model == "impulsive"
     noisy = add_noise(mesh, args.sigma, args.seed, along_normals=args.along_normals or impulsive,
                       relative=not args.absolute, fraction=fraction if impulsive else 1.0)
-    save(noisy, out, overwrite=args.force)
+    save(noisy, out, overwrite=args.force, attributes=keep)
     unit = "" if args.absolute else " mean edge lengths"
     what = f"impulsive noise (fraction {fraction:g}) sigma" if impulsive else "Gaussian noise sigma"
     print(f"jaxmesh: wrote {out}: {label} + {what}={args.sigma:g}{unit}, seed {args.seed}", file=sys.stderr)

@@ -293,7 +293,7 @@ def denoise_files(inputs: Sequence[str | Path], out_dir: str | Path, method: str
         A :class:`DatasetSummary` (counts, compiles, padding waste, seconds, one
         record per input)."""
     from ..denoise import METHODS
-    from ..io import load, save
+    from ..io import load
 
     start = time.perf_counter()
     params = dict(params or {})
@@ -319,7 +319,7 @@ def denoise_files(inputs: Sequence[str | Path], out_dir: str | Path, method: str
     plan = _plan(records, todo, batch_size, ladder) if batched else [Batch((k,), 0, (0, 0, 0)) for k in todo]
     ahead = batched and not _tuned(params)
     compiled = _precompile(plan, method, params, jnp.result_type(float)) if ahead else {}
-    tally, writer, finished = _Tally(), Writer(save, overwrite, log), 0
+    tally, writer, finished = _Tally(), Writer(_save_keeping, overwrite, log), 0
     try:
         prepare = functools.partial(_pad_group, ladder=ladder) if batched else None
         for batch, meshes, prepared in read_ahead(plan, items, load, prepare):
@@ -360,7 +360,24 @@ def _settle(rec: dict, result, noisy, item: tuple, params: dict, seconds: float,
     rec.update(status="ok", vertices=result.num_vertices, faces=result.num_faces, seconds=seconds)
     rec.setdefault("params", params)
     check = None if folder is None else functools.partial(supervision.score, rec, noisy, result, item[0], folder, load)
-    writer.put(result, item[1], rec, check)
+    writer.put(result, item, rec, check)
+
+
+def _save_keeping(mesh: Mesh, item: tuple, overwrite: bool) -> None:
+    """Save to the output of ``item`` (input, output), keeping what the input file carries besides
+    positions and triangles where the output has its format and its layout can be rewritten
+    (:mod:`jaxmesh.attributes`); else positions and triangles only."""
+    from ..attributes import read_attributes
+    from ..io import save
+
+    source, out = item
+    keep = None
+    if Path(source).suffix.lower() == Path(out).suffix.lower():
+        try:
+            keep = read_attributes(source)
+        except ValueError:
+            keep = None
+    save(mesh, out, overwrite=overwrite, attributes=keep)
 
 
 def _summary(records: list, tally: _Tally, start: float) -> DatasetSummary:
