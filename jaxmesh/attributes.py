@@ -31,7 +31,7 @@ import numpy as np
 from . import _ply
 from .mesh import Mesh
 
-__all__ = ["MeshAttributes", "read_attributes", "rewrite"]
+__all__ = ["MeshAttributes", "read_attributes", "rewrite", "vertex_property"]
 
 _COLOURS = frozenset("red green blue alpha r g b a diffuse_red diffuse_green diffuse_blue diffuse_alpha".split())
 _TEXTURE = frozenset("s t u v texture_u texture_v texture_s texture_t texcoord".split())
@@ -99,6 +99,28 @@ def rewrite(attributes: MeshAttributes, mesh: Mesh) -> bytes:
     if not np.isfinite(vertices).all():
         raise ValueError("refusing to save a mesh with non-finite vertex coordinates")
     return (_obj_rewrite if attributes.format == "obj" else _ply_rewrite)(attributes, mesh, vertices)
+
+
+def vertex_property(attributes: MeshAttributes, name: str) -> np.ndarray:
+    """The values of one PLY vertex property (a mask or a weight stored in the file).
+
+    Arguments:
+        attributes: from :func:`read_attributes` of a PLY file.
+        name: the property's name.
+
+    Returns:
+        (V,) array in the property's type."""
+    dtype = attributes._layout.get("dtype")
+    if attributes.format != "ply" or name not in dtype.names:
+        have = ", ".join(dtype.names) if attributes.format == "ply" else "none (not a PLY file)"
+        raise ValueError(f"no vertex property {name!r} (the file's vertex properties: {have})")
+    layout, data = attributes._layout, attributes._data
+    if not layout["ascii"]:
+        return np.frombuffer(data, dtype, layout["count"], layout["start"])[name].copy()
+    lines = [line for line in data[layout["head"]:].split(b"\n") if line.strip()]
+    rows = lines[layout["skip"]:][:layout["count"]]
+    column = dtype.names.index(name)
+    return np.array([row.split()[column] for row in rows], dtype[name].newbyteorder("="))
 
 
 def _vector_areas(mesh: Mesh) -> np.ndarray:

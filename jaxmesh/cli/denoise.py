@@ -6,9 +6,10 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import time
 
-from ..denoise import as_method
+from ..denoise import as_method, hold
 from ..io import load, save
 from ..tune import choose_denoiser, denoise_with_tuning
 from ..tune.auto import NOISE_MODELS
@@ -19,6 +20,7 @@ from ._common import (CLIError, check_output, check_view, input_attributes, load
 from ._dataset import dataset_arguments, run_dataset
 from ._denoise_report import progress_bar, report_auto, report_run
 from ._flags import add_parameter_flags, given_parameters, list_methods
+from ._selection import selection_arguments, selection_weights
 
 
 def configure(p) -> None:
@@ -52,6 +54,7 @@ def configure(p) -> None:
                    help=f"--method auto: on a mesh of more than {PATCH_FACTOR:g}N vertices, rank the candidates on "
                         f"patches holding about N vertices and run the choice on the whole mesh (default "
                         f"{SEARCH_VERTICES}); 'all': rank on the whole mesh")
+    selection_arguments(p)
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     view_argument(p, "the input and the result (and --reference, colouring both by the distance to it)")
     p.epilog = ("Method parameters are flags named after them (--lam, --iterations, --mu, ...). "
@@ -102,6 +105,8 @@ def run(args) -> int:
     if args.noise_sigma is not None and not args.noise_sigma > 0:
         raise CLIError(f"--noise-sigma must be > 0, got {args.noise_sigma}")
     if args.out_dir is not None:
+        if args.pin or args.region:
+            raise CLIError("--pin and --region select vertices of one mesh; they do not combine with --out-dir")
         if args.view:
             raise CLIError("--view shows one input and its result; it does not combine with --out-dir")
         return run_dataset(args, given)
@@ -113,10 +118,12 @@ def run(args) -> int:
         raise CLIError(f"{flags} needs a named method (--method NAME); --method auto chooses its own parameters")
     if args.method == "auto":
         label, mesh, reference, out = _load_pair(args)
-        keep = input_attributes(args.input, out)
+        keep, where = input_attributes(args.input, out), selection_weights(args, mesh)
         start = time.perf_counter()
         choice, caveats = with_caveats(choose_denoiser, mesh, sigma=args.noise_sigma,
                                        noise_model=args.noise_model or "auto", search_vertices=args.search_vertices)
+        if where is not None:
+            choice = dataclasses.replace(choice, mesh=hold(mesh, choice.mesh, where))
         save(choice.mesh, out, overwrite=args.force, attributes=keep)
         _view(args, label, mesh, out, choice.mesh, reference)
         return report_auto(args, label, out, mesh, reference, choice, caveats, time.perf_counter() - start)
@@ -127,13 +134,15 @@ def run(args) -> int:
     if args.raw_units and (args.tune or "auto" in given.values()):
         raise CLIError("tuning runs in the unit-diagonal frame; drop --raw-units")
     label, mesh, reference, out = _load_pair(args)
-    keep = input_attributes(args.input, out)
+    keep, where = input_attributes(args.input, out), selection_weights(args, mesh)
     start = time.perf_counter()
     tuning = args.tune or "auto" in given.values()
     total = given.get("iterations", as_method(args.method).defaults().get("iterations", 1))
     with progress_bar(args.method, total) if not tuning else contextlib.nullcontext():
         result, caveats = with_caveats(denoise_with_tuning, mesh, args.method, given, tune_all=args.tune,
                                        reference=reference, sigma=args.noise_sigma, unit_frame=not args.raw_units)
+    if where is not None:
+        result = dataclasses.replace(result, mesh=hold(mesh, result.mesh, where))
     save(result.mesh, out, overwrite=args.force, attributes=keep)
     _view(args, label, mesh, out, result.mesh, reference)
     return report_run(args, label, out, mesh, reference, result, caveats, time.perf_counter() - start)

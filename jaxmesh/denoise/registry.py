@@ -30,6 +30,7 @@ from .kernel_flow import kernel_diffusion
 from .laplacian import BOUNDARY_MODES, hc_smoothing, laplacian_smoothing, taubin_smoothing
 from .bilateral_normal import bilateral_normal_filtering
 from .face_graph import face_graph
+from .selection import hold
 from .guided import guided_normal_filtering
 from .impulse_repair import impulse_repair
 from .l0 import l0_denoising
@@ -307,19 +308,23 @@ def as_method(method: "str | Method") -> Method:
     return METHODS[method]
 
 
-def denoise(mesh: Mesh, method: "str | Method" = "kernel", **params) -> Mesh:
-    """Denoise ``mesh`` with a registered method: ``as_method(method)(mesh, **params)``.
+def denoise(mesh: Mesh, method: "str | Method" = "kernel", *, where=None, **params) -> Mesh:
+    """Denoise ``mesh`` with a registered method: ``as_method(method)(mesh, **params)``,
+    blended with the input by ``where`` (:mod:`jaxmesh.denoise.selection`).
 
     Arguments:
         mesh: the mesh (single or batched: every batch element is denoised).
         method: a registry name (``jaxmesh denoise --list-methods`` lists them; an
             unknown name is a clear error) or a :class:`Method` of your own.
+        where: per-vertex weights in [0, 1] or a boolean mask, (V,): x' = y + w (x − y), so
+            vertices with w = 0 keep their input positions exactly (default: all move).
         **params: the method's parameters (defaults from the registry); each is
             checked against its domain.
 
     Returns:
         The denoised mesh (same topology)."""
-    return as_method(method)(mesh, **params)
+    out = as_method(method)(mesh, **params)
+    return out if where is None else hold(mesh, out, where)
 
 
 def diverged(before: Mesh, after: Mesh, growth: float = 10.0):
