@@ -43,10 +43,10 @@ def _indices_file(path: Path, num_vertices: int) -> np.ndarray:
 
 
 def _mask(spec: str, args, mesh) -> np.ndarray:
-    from ..denoise.selection import boundary_vertices
+    from ..geodesics import boundary_vertices
 
     if spec == "boundary":
-        mask = boundary_vertices(mesh)
+        mask = np.asarray(boundary_vertices(mesh))
         if not mask.any():
             print("jaxmesh: warning: the mesh has no boundary; 'boundary' selects no vertex", file=sys.stderr)
         return mask

@@ -15,8 +15,8 @@ flow see them as constraints.  Differentiable in y, in w and in the method's par
 
 * :func:`region_weights` builds weights from a selection: 1 on it, falling linearly to 0
   over ``transition`` rings of edges outside it;
-* :func:`pin_weights` the complement: 0 on the pinned vertices, 1 elsewhere;
-* :func:`boundary_vertices` the vertices on a boundary edge (``--pin boundary``).
+* :func:`pin_weights` the complement: 0 on the pinned vertices, 1 elsewhere
+  (:func:`jaxmesh.geodesics.boundary_vertices` gives the boundary, ``--pin boundary``).
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from jaxtyping import Array, Float
 
 from ..mesh import Mesh
 
-__all__ = ["hold", "region_weights", "pin_weights", "boundary_vertices", "selection_mask"]
+__all__ = ["hold", "region_weights", "pin_weights", "selection_mask"]
 
 
 def hold(noisy: Mesh, denoised: Mesh, where) -> Mesh:
@@ -109,21 +109,6 @@ def pin_weights(mesh: Mesh, pinned) -> Float[Array, " V"]:
     Returns:
         (V,) weights in the mesh's dtype."""
     return jnp.asarray(~_as_mask(mesh, pinned), mesh.dtype)
-
-
-def boundary_vertices(mesh: Mesh) -> np.ndarray:
-    """The vertices on a boundary edge (an edge of one face).
-
-    Arguments:
-        mesh: the mesh.
-
-    Returns:
-        (V,) bool."""
-    from ..topology import boundary_edges
-
-    mask = np.zeros(mesh.num_vertices, bool)
-    mask[np.asarray(boundary_edges(mesh)).ravel()] = True
-    return mask
 
 
 def _as_mask(mesh: Mesh, selected) -> np.ndarray:
