@@ -8,9 +8,13 @@ cotangent weights c_ij = ½(cot α_ij + cot β_ij) and t = ℓ̄² by default:
    max(c_ij, 0) (negative weights of obtuse triangles clamped: M + tL⁺ is then an
    M-matrix and u > 0 decays monotonically away from s);
 2. the normalised gradient X = −∇u / |∇u| on every face;
-3. the Poisson problem L φ = −∇·X, L the cotangent Laplacian (positive
-   semidefinite; a shift of 10⁻¹² M/ℓ̄² makes it definite), with the weak
-   divergence (∇·X)_i = −Σ_f A_f X_f · ∇ψ_i;
+3. the Poisson problem (L + G) φ = −∇·X, L the cotangent Laplacian (positive
+   semidefinite) and G = diag(g) with g = 1 at one vertex of each connected component
+   and 0 elsewhere: the grounding makes it definite and pins the constant of each
+   component, which the Laplacian leaves free (φ is shifted in step 4 anyway).  L's
+   diagonal is summed from its weights in float64 on the host (``sparse_solve(laplacian=
+   True)``), so the system stays definite, and φ representable, in float32.  The weak
+   divergence is (∇·X)_i = −Σ_f A_f X_f · ∇ψ_i;
 4. φ shifted so that φ(s) = 0.
 
 Boundaries (``boundary``): ``"neumann"`` solves step 1 with the natural condition
@@ -34,7 +38,7 @@ from typing import Literal
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Float
+from jaxtyping import Array, Float, Int
 
 from ._private import safe_norm, segment_sum_scalars
 from .geometry import edge_lengths, face_corners, hat_gradients, mean_edge_length
@@ -114,24 +118,54 @@ def heat_distances(
     arrays = None if not intrinsic else tuple(jnp.asarray(z) for z in (
         triangulation.faces, triangulation.face_edges, triangulation.flips, triangulation.pairs,
         triangulation.edge_pair))
+    labels = _components(mesh, triangulation if intrinsic else None)
     count = sources.shape[0]
     if count == 0:
         return jnp.zeros((0, mesh.num_vertices), mesh.dtype)
     if count <= block:
-        return _heat(mesh, sources, t, arrays, boundary=boundary, backend=backend)
+        return _checked(_heat(mesh, sources, t, arrays, labels, boundary=boundary, backend=backend), mesh)
     # one compiled block at a time (the last padded with its final source): the program is one block's,
     # whatever the count, and no two blocks' (F, block, 3) intermediates are alive at once
     padded = jnp.concatenate([sources, jnp.broadcast_to(sources[-1:], (-count % block,))])
-    out = [_heat(mesh, padded[lo:lo + block], t, arrays, boundary=boundary, backend=backend)
+    out = [_checked(_heat(mesh, padded[lo:lo + block], t, arrays, labels, boundary=boundary, backend=backend), mesh)
            for lo in range(0, padded.shape[0], block)]
     return jnp.concatenate(out, axis=0)[:count]
 
 
+def _components(mesh: Mesh, triangulation: IntrinsicTriangulation | None) -> Int[Array, " V"]:
+    """Each vertex's connected component in the edge graph (the intrinsic triangulation has the
+    mesh's), numbered so that the first vertex of each component holds its own index; all 0
+    where the edges are traced (under ``jit`` with ``intrinsic=False``: right for a connected mesh)."""
+    pairs = triangulation.pairs if triangulation is not None else mesh.edges
+    if isinstance(pairs, jax.core.Tracer):
+        return jnp.zeros(mesh.num_vertices, jnp.int32)
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    e = np.asarray(pairs)
+    graph = coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), (mesh.num_vertices,) * 2)
+    labels = connected_components(graph, directed=False)[1]
+    first = np.unique(labels, return_index=True)[1]
+    return jnp.asarray(first[labels], jnp.int32)
+
+
+def _checked(result, mesh: Mesh):
+    """The distances of one block, after refusing (on concrete values) a heat flow that underflowed."""
+    distances, lost = result
+    if not isinstance(lost, jax.core.Tracer) and bool(jnp.any(lost)):
+        raise ValueError(f"heat_distances: the heat flow underflows in {mesh.dtype} on this mesh (it decays by "
+                         "exp(−d/ℓ̄) and reaches 0 before the farthest vertex of the source's component), so the "
+                         "distances there would be wrong; use float64: jax.config.update('jax_enable_x64', True) "
+                         "and jaxmesh.load(..., dtype='float64')")
+    return distances
+
+
 @functools.partial(jax.jit, static_argnames=("boundary", "backend"))
-def _heat(mesh: Mesh, sources, t, triangulation, *, boundary: str, backend: str):
+def _heat(mesh: Mesh, sources, t, triangulation, labels, *, boundary: str, backend: str):
     """The numerical part of :func:`heat_distances` for one block of sources (all solved
     together), compiled once per shape (the triangulation's arrays are arguments, so a new
-    one of the same sizes reuses it)."""
+    one of the same sizes reuses it): the distances, NaN for a source whose heat flow
+    underflowed (u = 0 somewhere in its component), and which did."""
     n, dtype = mesh.num_vertices, mesh.dtype
     if triangulation is not None:
         faces, face_edges, flips, pairs, edge_pair = triangulation
@@ -159,12 +193,11 @@ def _heat(mesh: Mesh, sources, t, triangulation, *, boundary: str, backend: str)
     def row_sums(w):
         return jnp.zeros(n, dtype).at[e0].add(w).at[e1].add(w)
 
-    def solve(diag, off, rhs):
-        return sparse_solve(pairs, diag, off, rhs, backend=backend)
+    def solve(diag, off, rhs, laplacian=False):
+        return sparse_solve(pairs, diag, off, rhs, backend=backend, laplacian=laplacian)
 
     heat_w = jnp.maximum(c, 0) if clamp else c
     heat_diag, heat_off = mass + t * row_sums(heat_w), -t * heat_w
-    poisson_diag, poisson_off = row_sums(c) + 1e-12 * mass / ell ** 2, -c
     if boundary != "neumann":
         on = boundary_vertices(mesh)
         dir_diag = jnp.where(on, 1.0, heat_diag)
@@ -180,9 +213,16 @@ def _heat(mesh: Mesh, sources, t, triangulation, *, boundary: str, backend: str)
             u_n = solve(heat_diag, heat_off, delta)
             # a boundary source has u_D = 0: its field is the Neumann one
             u = jnp.where(on[src][None, :], u_n, 0.5 * (u + u_n))
+    zero = (u <= 0) if boundary != "dirichlet" else (u <= 0) & ~on[:, None]    # u_D = 0 on the boundary
+    lost = jnp.any((labels[:, None] == labels[src][None, :]) & zero, axis=0)          # (k,)
     gu = jnp.einsum("fks,fkd->fsd", u[faces], grad)                   # ∇u per face, (F, k, 3)
+    # scaled before normalising: far from the source u is ~1e-21 and |∇u|² underflows in float32
+    # (X does not depend on the scale, so the scale carries no gradient)
+    scale = jax.lax.stop_gradient(jnp.max(jnp.abs(gu), axis=-1, keepdims=True))
+    gu = gu / jnp.where(scale > 0, scale, 1)
     x = -gu / jnp.maximum(safe_norm(gu), jnp.finfo(dtype).tiny)[..., None]
     contrib = area[:, None, None] * jnp.einsum("fkd,fsd->fks", grad, x)   # A_f X_f · ∇ψ_k
     b = jnp.zeros((n, k), dtype).at[flat].add(contrib.reshape(-1, k))
-    phi = solve(poisson_diag, poisson_off, b)
-    return (phi - phi[src, jnp.arange(k)][None, :]).T
+    ground = (labels == jnp.arange(n, dtype=labels.dtype)).astype(dtype)
+    phi = solve(ground, -c, b, laplacian=True)                         # (L + G) φ = b, step 3
+    return jnp.where(lost[:, None], jnp.nan, (phi - phi[src, jnp.arange(k)][None, :]).T), lost

@@ -242,7 +242,10 @@ def intrinsic_delaunay(mesh: Mesh, *, tolerance: float = 1e-10, max_flips: int |
     faces = np.array(mesh.faces, np.int64)
     face_edges = np.asarray(mesh.face_edges, np.int64)
     nf, ne = faces.shape[0], mesh.num_edges
-    length = np.asarray(edge_lengths(mesh), np.float64).copy()
+    # the lengths in float64 from the positions as stored, whatever the mesh's dtype: a float32 mesh
+    # then flips as its float64 copy does (near-ties are not decided by float32 rounding)
+    v, e = np.asarray(mesh.vertices, np.float64), np.asarray(mesh.edges)
+    length = np.sqrt(np.sum((v[e[:, 1]] - v[e[:, 0]]) ** 2, axis=-1))
     he = _HalfEdges(faces, face_edges, mesh.num_vertices, ne)
     # the first pass, vectorised: only edges that are not Delaunay start in the queue
     cot = cotangents_from_lengths(length[face_edges], np)              # (F, 3), corner k opposite edge k

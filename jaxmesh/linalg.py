@@ -26,6 +26,14 @@ adds a lumped mass to the diagonal.
 
   so a reverse pass is one more solve with the same factor (A is symmetric).
 
+With ``laplacian=True`` the diagonal given is what the matrix adds to a graph Laplacian,
+
+    A = diag(d − s) + sum_e a_e (e_i e_jᵀ + e_j e_iᵀ),   s_i = Σ_j a_ij,
+
+and the row sums s are formed on the host in float64: a Laplacian's rows then sum to
+exactly d whatever the input's precision, so a Laplacian with a tiny shift d stays
+positive definite in float32, where d − s rounded to float32 would not.
+
 The matrix must be nonsingular, and positive definite for the Cholesky backend
 (an indefinite matrix is refused with ``ValueError`` there; ``backend="lu"`` takes any
 nonsingular symmetric matrix).
@@ -66,16 +74,18 @@ def default_backend() -> str:
 
 def sparse_matvec(
     edges: Int[Array, "E 2"], diagonal: Float[Array, " n"], edge_values: Float[Array, " E"],
-    x: Float[Array, "n ..."],
+    x: Float[Array, "n ..."], *, laplacian: bool = False,
 ) -> Float[Array, "n ..."]:
     """y = A x for A = diag(d) + Σ_e a_e (e_i e_jᵀ + e_j e_iᵀ) (module docstring), by
-    segment sums over both directions of every edge.
+    segment sums over both directions of every edge; with ``laplacian``, A = diag(d − s) + …
+    and y_i = d_i x_i + Σ_j a_ij (x_j − x_i).
 
     Arguments:
         edges: undirected edges (i, j), (E, 2).
         diagonal: d, (n,).
         edge_values: a, one per edge, (E,).
         x: vectors, (n,) or (n, k).
+        laplacian: the Laplacian form of the module docstring.
 
     Returns:
         A x, the shape of ``x``."""
@@ -83,13 +93,16 @@ def sparse_matvec(
     a = edge_values.reshape(edge_values.shape + (1,) * (x.ndim - 1))
     d = diagonal.reshape(diagonal.shape + (1,) * (x.ndim - 1))
     out = d * x
+    if laplacian:
+        out = out.at[i].add(a * (x[j] - x[i]))
+        return out.at[j].add(a * (x[i] - x[j]))
     out = out.at[i].add(a * x[j])
     return out.at[j].add(a * x[i])
 
 
 def sparse_solve(
     edges: Int[Array, "E 2"], diagonal: Float[Array, " n"], edge_values: Float[Array, " E"],
-    b: Float[Array, "n ..."], *, backend: Literal["auto", "cholesky", "lu"] = "auto",
+    b: Float[Array, "n ..."], *, backend: Literal["auto", "cholesky", "lu"] = "auto", laplacian: bool = False,
 ) -> Float[Array, "n ..."]:
     """x = A⁻¹ b for the symmetric sparse A of the module docstring; differentiable in
     ``diagonal``, ``edge_values`` and ``b`` (forward and reverse), jittable and vmappable.
@@ -101,6 +114,8 @@ def sparse_solve(
         b: right-hand sides, (n,) or (n, k).
         backend: ``"cholesky"`` (cholespy; A must be positive definite), ``"lu"``
             (SciPy SuperLU; any nonsingular A) or ``"auto"`` (:func:`default_backend`).
+        laplacian: ``diagonal`` is added to the Laplacian of ``edge_values`` (module
+            docstring), its row sums formed in float64.
 
     Returns:
         x, the shape and dtype of ``b``."""
@@ -118,23 +133,24 @@ def sparse_solve(
     diagonal, edge_values, b = (jnp.asarray(z, dtype) for z in (diagonal, edge_values, b))
 
     def matvec(x):
-        return sparse_matvec(edges, diagonal, edge_values, x)
+        return sparse_matvec(edges, diagonal, edge_values, x, laplacian=laplacian)
 
     if not any(isinstance(z, jax.core.Tracer) for z in (edges, diagonal, edge_values)):
         # concrete matrix: factor now, so that a singular or indefinite matrix is a plain
         # ValueError here (the callback below then finds the factor in the cache)
-        _factor(np.asarray(edges), np.asarray(diagonal), np.asarray(edge_values), resolved)
+        e, a = np.asarray(edges), np.asarray(edge_values)
+        _factor(e, _host_diagonal(e, np.asarray(diagonal), a, laplacian), a, resolved)
 
     def solve(_, rhs):
         return _host_solve(edges, jax.lax.stop_gradient(diagonal), jax.lax.stop_gradient(edge_values), rhs,
-                           resolved)
+                           resolved, laplacian)
 
     return jax.lax.custom_linear_solve(matvec, b, solve, symmetric=True)
 
 
 def mesh_solve(
     mesh: Mesh, diagonal: Float[Array, " V"], edge_values: Float[Array, " E"], b: Float[Array, "V ..."], *,
-    backend: Literal["auto", "cholesky", "lu"] = "auto",
+    backend: Literal["auto", "cholesky", "lu"] = "auto", laplacian: bool = False,
 ) -> Float[Array, "V ..."]:
     """:func:`sparse_solve` on the pattern of ``mesh``: ``edge_values`` in ``mesh.edges`` order.
 
@@ -144,10 +160,20 @@ def mesh_solve(
         edge_values: a, one per edge in ``mesh.edges`` order, (E,).
         b: right-hand sides, (V,) or (V, k).
         backend: as :func:`sparse_solve`.
+        laplacian: as :func:`sparse_solve`.
 
     Returns:
         x, the shape and dtype of ``b``."""
-    return sparse_solve(mesh.edges, diagonal, edge_values, b, backend=backend)
+    return sparse_solve(mesh.edges, diagonal, edge_values, b, backend=backend, laplacian=laplacian)
+
+
+def _host_diagonal(edges: np.ndarray, diagonal: np.ndarray, values: np.ndarray, laplacian: bool) -> np.ndarray:
+    """The matrix's diagonal in float64: d, or d − s (s the row sums of the edge values)."""
+    d = np.asarray(diagonal, np.float64)
+    if not laplacian:
+        return d
+    a = np.asarray(values, np.float64)
+    return d - np.bincount(edges[:, 0], a, len(d)) - np.bincount(edges[:, 1], a, len(d))
 
 
 # --------------------------------------------------------------------------- host side
@@ -249,7 +275,7 @@ def _factor(edges: np.ndarray, diagonal: np.ndarray, values: np.ndarray, backend
     return made
 
 
-def _host_solve(edges, diagonal, edge_values, rhs, backend: str):
+def _host_solve(edges, diagonal, edge_values, rhs, backend: str, laplacian: bool = False):
     """The callback: batched over any leading axes that ``vmap`` added (``expand_dims``:
     unbatched arguments carry size-1 axes there)."""
     base = rhs.ndim          # (n,) or (n, k) before vmap
@@ -266,7 +292,7 @@ def _host_solve(edges, diagonal, edge_values, rhs, backend: str):
                 and a.strides[:len(lead)] == (0,) * len(lead):
             # one matrix, many right-hand sides (vmap over b): one factor, one multi-column solve
             idx0 = (0,) * len(lead)
-            f = _factor(e[idx0], d[idx0], a[idx0], backend)
+            f = _factor(e[idx0], _host_diagonal(e[idx0], d[idx0], a[idx0], laplacian), a[idx0], backend)
             cols = np.moveaxis(r.reshape((-1,) + r.shape[len(lead):]), 0, -1)     # (n, [k,] B)
             x = f.solve(cols.reshape(cols.shape[0], -1)).reshape(cols.shape)
             with _lock:
@@ -274,7 +300,7 @@ def _host_solve(edges, diagonal, edge_values, rhs, backend: str):
             return np.moveaxis(x, -1, 0).reshape(r.shape).astype(r.dtype)
         out = np.empty(r.shape, r.dtype)
         for idx in np.ndindex(*lead):
-            f = _factor(e[idx], d[idx], a[idx], backend)
+            f = _factor(e[idx], _host_diagonal(e[idx], d[idx], a[idx], laplacian), a[idx], backend)
             out[idx] = f.solve(r[idx]).astype(r.dtype)
             with _lock:
                 _stats["solves"] += 1

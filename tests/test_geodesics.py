@@ -201,3 +201,18 @@ def test_refusals():
     with pytest.raises(ValueError, match="sources must lie"):
         heat_distances(mesh, [0, mesh.num_vertices])
     assert_refused(heat_distances, mesh, [0], boundary="robin", param="boundary", message="boundary must be one of")
+
+
+def test_float32_distances_agree_with_float64_or_are_refused_naming_it():
+    spot = jaxmesh.data.load_sample("spot", dtype=np.float64)
+    strip = jaxmesh.Mesh.from_arrays(*grid_arrays(60, 2))      # u ~ e^-60 at its end: |∇u|² below float32's range
+    for mesh, src in ((spot, np.array([0, 700, 2000])), (strip, np.array([0, 100]))):
+        d64 = np.asarray(heat_distances(mesh, src))
+        d32 = heat_distances(jaxmesh.Mesh.from_arrays(np.asarray(mesh.vertices, np.float32), mesh.faces), src)
+        assert d32.dtype == jnp.float32
+        np.testing.assert_allclose(d32, d64, rtol=0, atol=1e-5 * d64.max())
+    v, f = grid_arrays(160, 2)                   # a strip 160 edges long: e^-160 is below float32's range
+    with pytest.raises(ValueError, match="underflows in float32 .* use float64"):
+        heat_distances(jaxmesh.Mesh.from_arrays(v.astype(np.float32), f), [0])
+    far = np.asarray(heat_distances(jaxmesh.Mesh.from_arrays(v, f), [0]))[0]
+    assert np.isfinite(far).all() and abs(far.max() - np.hypot(160, 2)) < 0.1 * 160

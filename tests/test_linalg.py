@@ -138,3 +138,28 @@ def test_implicit_flow_with_the_direct_solve_equals_cg_and_batches():
 
     np.testing.assert_allclose(jax.grad(loss)(noisy.vertices, "cholesky"), jax.grad(loss)(noisy.vertices, "cg"),
                                atol=1e-7)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_the_laplacian_form_sums_the_diagonal_in_float64_and_differentiates(system, backend):
+    mesh, _, a, b = system
+    ground = jnp.zeros(mesh.num_vertices).at[3].set(1.0)
+    e = np.asarray(mesh.edges)
+    d = np.asarray(ground) - np.bincount(e.ravel(), np.repeat(np.asarray(a), 2), mesh.num_vertices)
+    want = spla.spsolve(scipy_matrix(mesh.edges, d, np.asarray(a)), np.asarray(b))
+    x = linalg.mesh_solve(mesh, ground, a, b, backend=backend, laplacian=True)
+    np.testing.assert_allclose(x, want, rtol=1e-10, atol=1e-10)
+    np.testing.assert_allclose(linalg.sparse_matvec(mesh.edges, ground, a, x, laplacian=True), b, atol=1e-10)
+
+    def f(g, a, b):
+        return jnp.sum(jnp.sin(linalg.mesh_solve(mesh, jnp.asarray(g), jnp.asarray(a), jnp.asarray(b),
+                                                 backend=backend, laplacian=True)))
+
+    check_grads(f, (ground + 0.5, a, b), order=1, modes=("fwd", "rev"), atol=1e-6, rtol=1e-6)
+    # float32: a Laplacian grounded at one vertex (rows summing to 0 but for it) stays definite
+    a32, b32 = a.astype(jnp.float32), (b - b.mean(0, keepdims=True)).astype(jnp.float32)
+    x32 = linalg.mesh_solve(mesh, ground.astype(jnp.float32), a32, b32, backend=backend, laplacian=True)
+    assert x32.dtype == jnp.float32
+    ref = linalg.mesh_solve(mesh, ground, a32.astype(jnp.float64), b32.astype(jnp.float64), backend=backend,
+                            laplacian=True)
+    np.testing.assert_allclose(x32, ref, rtol=1e-5, atol=1e-5 * float(jnp.abs(ref).max()))
