@@ -15,6 +15,7 @@ import jaxmesh
 from jaxmesh.compress import basis as B
 from jaxmesh.compress import codec as C
 from jaxmesh.compress import connectivity as K
+from jaxmesh.compress._sections import content_digest
 from jaxmesh.compress.rangecoder import Model, RangeCoderError, RangeDecoder, RangeEncoder
 from jaxmesh.metrics import nonlinear_visual_error
 
@@ -446,3 +447,78 @@ def test_real_meshes_round_trip_under_three_bits_connectivity(name):
     assert 8 * len(code.data) / mesh.num_vertices < 3.0
     faces = K.decode_connectivity(code.data, False)
     assert canonical_faces(code.order[faces]) == canonical_faces(np.asarray(mesh.faces))
+
+
+def _with_digest(data: bytes, digest: int) -> bytes:
+    fields = list(C._HEAD.unpack_from(data, 0))
+    fields[-1] = digest
+    return _recrc(C._HEAD.pack(*fields) + data[C._HEAD.size:-4])
+
+
+def test_forged_connectivity_with_a_recomputed_checksum_is_refused():
+    """One face's orientation reversed in a fallback-coded file, its checksum recomputed: the vertex
+    graph, so the basis and the vertices, are unchanged, and only the digest sees the other faces."""
+    v, f = jxm_fin()
+    data = C.compress(jaxmesh.Mesh.from_arrays(v, f), keep=0.5, bits=10).data
+    fields = list(C._HEAD.unpack_from(data, 0))
+    assert fields[2] & 1                                              # the fallback coder
+    cut = C._HEAD.size + fields[12]
+    faces, n = K.fallback_decode(data[C._HEAD.size:cut])
+    faces = faces.copy()
+    faces[0] = faces[0][::-1]
+    section = K.fallback_code(faces, n).data
+    fields[12] = len(section)
+    forged = _recrc(C._HEAD.pack(*fields) + section + data[cut:-4])
+    with pytest.raises(C.CodecError, match="does not match the header's digest"):
+        C.decompress(forged)
+    faces, labels, ranks, blocks = _decoded_parts(forged)
+    digest = content_digest(faces, labels, ranks, blocks, b"", fields[8], fields[2])
+    other = C.decompress(_with_digest(forged, digest))
+    assert not np.array_equal(np.asarray(other.faces), np.asarray(C.decompress(data).faces))
+    np.testing.assert_array_equal(other.vertices, C.decompress(data).vertices)
+
+
+def jxm_fin():
+    """An icosphere with a fin on one edge (a non-manifold edge: the fallback coder)."""
+    s = trimesh.creation.icosphere(1)
+    v, f = np.asarray(s.vertices), np.asarray(s.faces)
+    return np.vstack([v, [[2.0, 2.0, 2.0]]]), np.vstack([f, [[f[0, 0], f[0, 1], len(v)]]])
+
+
+def _decoded_parts(data: bytes):
+    """(faces, labels, ranks, blocks) that the decoder reads from ``data``'s sections."""
+    from types import SimpleNamespace
+
+    from jaxmesh.compress._sections import SECTION_TABLE
+
+    h = C._parse(data)
+    dec = SimpleNamespace(n=h["n"], nf=h["nf"], parts=h["parts"], flags=h["flags"], step=h["step"],
+                          kind="laplacian", dense_max=1200, digest=None)
+    for sec, section in zip(SECTION_TABLE, h["sections"]):
+        if not sec.flag or h["flags"] & sec.flag:
+            sec.decode(dec, section)
+    return dec.faces, dec.labels, dec.ranks, dec.blocks
+
+
+def test_every_header_bit_edit_with_a_recomputed_checksum_is_refused_or_harmless():
+    s = trimesh.creation.icosphere(1)
+    data = C.compress(jaxmesh.Mesh.from_arrays(s.vertices, s.faces), keep=0.5, bits=10).data
+    clean = C.decompress(data)
+    for bit in range(8 * len(C.MAGIC), 8 * C._HEAD.size):
+        edited = bytearray(data[:-4])
+        edited[bit // 8] ^= 1 << (bit % 8)
+        try:
+            mesh = C.decompress(_recrc(bytes(edited)))
+        except C.CodecError:
+            continue
+        assert np.array_equal(mesh.faces, clean.faces) and np.array_equal(mesh.vertices, clean.vertices), bit
+
+
+def test_a_version_1_file_still_decodes():
+    s = trimesh.creation.icosphere(1)
+    data = C.compress(jaxmesh.Mesh.from_arrays(s.vertices, s.faces), keep=0.5, bits=10).data
+    fields = list(C._HEAD.unpack_from(data, 0))
+    fields[1] = 1
+    old = _recrc(C._HEAD_V1.pack(*fields[:-1]) + data[C._HEAD.size:-4])
+    np.testing.assert_array_equal(C.decompress(old).vertices, C.decompress(data).vertices)
+    assert C.inspect(old)["format_version"] == 1

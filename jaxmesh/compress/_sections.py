@@ -7,6 +7,8 @@ here and its two functions."""
 from __future__ import annotations
 
 import lzma
+import struct
+import zlib
 from dataclasses import dataclass
 from types import SimpleNamespace
 from collections.abc import Callable
@@ -19,7 +21,7 @@ from . import patches as _patches
 from .coefficients import CodecError, decode_coefficients, decode_ranks, encode_coefficients, encode_ranks
 from .rangecoder import max_decisions
 
-__all__ = ["SECTION_TABLE"]
+__all__ = ["SECTION_TABLE", "content_digest"]
 
 #: header flag bits: the connectivity section holds the fallback code; the basis is the
 #: umbrella matrix's; the order section is present (the vertex order is kept)
@@ -83,6 +85,24 @@ def _reconstruct(bases, blocks, step: float, n: int) -> np.ndarray:
     return out
 
 
+def content_digest(faces, labels, ranks, blocks, order_section: bytes, step: float, flags: int) -> int:
+    """CRC-32 of what the sections decode to (the header's digest, format version 2): the faces in
+    traversal order, the patch labels, the ranks, the quantized coefficients, the order section's
+    bytes, the quantization step and the flags."""
+    crc = 0
+    for a in (faces, labels, np.asarray(ranks), *blocks):
+        crc = zlib.crc32(np.ascontiguousarray(a, "<i8").tobytes(), crc)
+    return zlib.crc32(order_section + struct.pack("<dH", step, flags), crc)
+
+
+def _check_digest(dec, blocks) -> None:
+    """Refuse, before any eigenproblem is solved, content that does not match the header's digest."""
+    if getattr(dec, "digest", None) is not None and content_digest(
+            dec.faces, dec.labels, dec.ranks, blocks, dec.order_section, dec.step, dec.flags) != dec.digest:
+        raise CodecError("the decoded content does not match the header's digest: the file was edited and its "
+                         "checksum recomputed (corrupt or forged file)")
+
+
 # --------------------------------------------------------------------------- the sections
 def _encode_connectivity(enc) -> bytes:
     return enc.code.data
@@ -134,8 +154,9 @@ def _decode_coefficients(dec, data: bytes) -> None:
         raise CodecError(f"{sum(dec.ranks)} coefficients per axis cannot be described by a "
                          f"{len(data)}-byte coefficient section (corrupt file)")
     blocks = decode_coefficients(data, dec.ranks)
+    _check_digest(dec, blocks)
     bases = _patch_bases(dec.adjacency, dec.labels, dec.ranks, dec.kind, dec.dense_max)
-    dec.vertices = _reconstruct(bases, blocks, dec.step, dec.n)
+    dec.blocks, dec.vertices = blocks, _reconstruct(bases, blocks, dec.step, dec.n)
 
 
 def _encode_order(enc) -> bytes:

@@ -30,12 +30,18 @@ File layout (little-endian)::
     step       f64      quantization step s
     check      3 × f64  Σ_i g_i v̂_i, g fixed weights in [−1, 1)
     lengths    5 × u32  connectivity, labels, ranks, coefficients, order sections
+    digest     u32      CRC-32 of what the sections decode to (version 2; ``_sections.content_digest``)
     sections   …
     crc32      u32      of every byte before it
 
 Any byte changed, missing or added is reported as :class:`CodecError` with the
 reason (bad magic, newer version, truncated, checksum mismatch, inconsistent
-section), never decoded into a wrong mesh.
+section), never decoded into a wrong mesh.  The digest covers the decoded
+connectivity, patch labels, ranks and quantized coefficients, the order section, the
+step and the flags, and is checked before the eigenproblems are solved: an edit whose
+file checksum was recomputed (a forged or repaired file) is refused too, at a fraction
+of a clean decode's cost.  Version-1 files (no digest) still decode, with the other
+checks.
 """
 
 from __future__ import annotations
@@ -52,7 +58,7 @@ from ..metrics import rms_vertex_error
 from . import basis as _basis
 from . import connectivity as _conn
 from . import patches as _patches
-from ._sections import _FALLBACK, _ORDER, _UMBRELLA, SECTION_TABLE, _patch_bases, _reconstruct
+from ._sections import _FALLBACK, _ORDER, _UMBRELLA, SECTION_TABLE, _patch_bases, _reconstruct, content_digest
 from .coefficients import CodecError
 from .rangecoder import RangeCoderError
 
@@ -60,10 +66,11 @@ __all__ = ["MAGIC", "FORMAT_VERSION", "SECTIONS", "CodecError", "Compressed", "a
            "inspect"]
 
 MAGIC = b"\x89JXM\r\n\x1a\n"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
 #: the file's sections, in file order: the header stores their byte lengths in this order
 SECTIONS = tuple(sec.name for sec in SECTION_TABLE)
-_HEAD = struct.Struct(f"<8sHHIIIBdd3d{len(SECTIONS)}I")
+_HEAD = struct.Struct(f"<8sHHIIIBdd3d{len(SECTIONS)}II")
+_HEAD_V1 = struct.Struct(f"<8sHHIIIBdd3d{len(SECTIONS)}I")
 
 
 def _check_sums(vertices: np.ndarray) -> np.ndarray:
@@ -202,8 +209,9 @@ def compress(mesh: Mesh, keep: float = 0.1, bits: int = 12, *, basis: str = "lap
     for sec, data in zip(SECTION_TABLE, sections):
         flags |= sec.flag if data else 0
     check = _check_sums(out_vertices)
+    digest = content_digest(faces_d, labels, ranks, blocks, sections[-1], step, flags)
     head = _HEAD.pack(MAGIC, FORMAT_VERSION, flags, n, len(f), len(ranks), int(bits), float(keep),
-                      step, *check.tolist(), *(len(s) for s in sections))
+                      step, *check.tolist(), *(len(s) for s in sections), digest)
     body = head + b"".join(sections)
     data = body + struct.pack("<I", zlib.crc32(body))
     out_mesh = Mesh.from_arrays(out_vertices, out_faces, warn=False)
@@ -239,11 +247,12 @@ def _parse(data: bytes):
                          f"versions up to {FORMAT_VERSION}")
     if version < 1:
         raise CodecError(f"invalid format version {version}")
-    if len(data) < _HEAD.size + 4:
-        raise CodecError(f"truncated file: {len(data)} bytes, shorter than the {_HEAD.size + 4}-byte header")
-    fields = _HEAD.unpack_from(data, 0)
+    head = _HEAD if version >= 2 else _HEAD_V1
+    if len(data) < head.size + 4:
+        raise CodecError(f"truncated file: {len(data)} bytes, shorter than the {head.size + 4}-byte header")
+    fields = head.unpack_from(data, 0)
     lengths = fields[12:12 + len(SECTIONS)]
-    expected = _HEAD.size + sum(lengths) + 4
+    expected = head.size + sum(lengths) + 4
     if len(data) < expected:
         raise CodecError(f"truncated file: {len(data)} bytes, the header announces {expected}")
     if len(data) > expected:
@@ -264,12 +273,13 @@ def _parse(data: bytes):
         raise CodecError("non-finite reconstruction check (corrupt header)")
     if n < 3 or nf < 1:
         raise CodecError(f"invalid counts: {n} vertices, {nf} faces (corrupt header)")
-    sections, pos = [], _HEAD.size
+    sections, pos = [], head.size
     for ln in lengths:
         sections.append(data[pos:pos + ln])
         pos += ln
     return dict(version=version, flags=flags, n=n, nf=nf, parts=parts, bits=bits, keep=keep, step=step,
-                check=np.asarray(fields[9:12]), sections=sections, size=len(data))
+                check=np.asarray(fields[9:12]), sections=sections, size=len(data),
+                digest=fields[12 + len(SECTIONS)] if version >= 2 else None)
 
 
 def inspect(data: bytes) -> dict:
@@ -305,15 +315,16 @@ def decompress(data: bytes, *, dense_max: int = 1200) -> Mesh:
         The decoded :class:`~jaxmesh.Mesh`."""
     h = _parse(data)
     dec = SimpleNamespace(n=h["n"], nf=h["nf"], parts=h["parts"], flags=h["flags"], step=h["step"],
-                          kind="umbrella" if h["flags"] & _UMBRELLA else "laplacian", dense_max=dense_max)
+                          kind="umbrella" if h["flags"] & _UMBRELLA else "laplacian", dense_max=dense_max,
+                          digest=h["digest"], order_section=h["sections"][-1])
+    for sec, section in zip(SECTION_TABLE, h["sections"]):
+        if sec.flag and not h["flags"] & sec.flag and section:
+            raise CodecError(f"the {sec.name} section has bytes but the header's flags say it is absent "
+                             "(corrupt file)")
     try:
         for sec, section in zip(SECTION_TABLE, h["sections"]):
-            if sec.flag and not h["flags"] & sec.flag:
-                if section:
-                    raise CodecError(f"the {sec.name} section has bytes but the header's flags say it is absent "
-                                     "(corrupt file)")
-                continue
-            sec.decode(dec, section)
+            if not sec.flag or h["flags"] & sec.flag:
+                sec.decode(dec, section)
     except (_conn.ConnectivityError, RangeCoderError, ValueError) as err:
         if isinstance(err, CodecError):
             raise

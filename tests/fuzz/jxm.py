@@ -26,7 +26,7 @@ import numpy as np
 
 KINDS = ("flip", "flip_crc", "truncate", "insert_crc", "delete_crc", "header_crc", "inner_crc", "splice_crc",
          "bomb_crc")
-_HEAD = struct.Struct("<8sHHIIIBdd3d5I")
+_HEAD = struct.Struct("<8sHHIIIBdd3d5II")
 _INT_FIELDS = {3: "V", 4: "F", 5: "parts", 12: "len0", 13: "len1", 14: "len2", 15: "len3", 16: "len4"}
 _FLOAT_FIELDS = {7: "keep", 8: "step", 9: "check0", 10: "check1", 11: "check2"}
 _EXTREME_INTS = (0, 1, 2, 3, 2**31, 2**31 - 1, 2**32 - 1, 65535)
@@ -86,6 +86,26 @@ def _pack(fields, sections) -> bytes:
     fields[12:17] = [len(s) for s in sections]
     body = _HEAD.pack(*fields) + b"".join(bytes(s) for s in sections)
     return body + struct.pack("<I", zlib.crc32(body))
+
+
+def redigest(data: bytes) -> bytes:
+    """``data`` with the header's digest set to what its sections decode to (a forger who
+    recomputed it too), so that a check after the digest's is what a forged file meets."""
+    from types import SimpleNamespace
+
+    from jaxmesh.compress import codec
+    from jaxmesh.compress._sections import SECTION_TABLE, content_digest
+
+    h = codec._parse(data)
+    dec = SimpleNamespace(n=h["n"], nf=h["nf"], parts=h["parts"], flags=h["flags"], step=h["step"], digest=None)
+    for sec, section in list(zip(SECTION_TABLE, h["sections"]))[:3]:       # connectivity, labels, ranks
+        sec.decode(dec, section)
+    from jaxmesh.compress.coefficients import decode_coefficients
+
+    blocks = decode_coefficients(h["sections"][3], dec.ranks)
+    fields, sections = _sections(data)
+    fields[17] = content_digest(dec.faces, dec.labels, dec.ranks, blocks, bytes(sections[4]), h["step"], h["flags"])
+    return _pack(fields, sections)
 
 
 def _with_crc(body: bytes) -> bytes:

@@ -116,8 +116,10 @@ def test_claims_of_2_31_elements_are_refused_in_bounded_memory(tmp_path, sphere_
 def test_lzma_bomb_in_the_order_section_is_refused_without_inflating(sphere_file):
     bomb = lzma.compress(b"\0" * (16 * 2**20))
     forged = _forge(sphere_file, field=2, value=4, section=4, payload=bomb)
-    with pytest.raises(C.CodecError, match="cannot hold|does not inflate"):
+    with pytest.raises(C.CodecError, match="does not match the header's digest"):       # caught before inflating
         C.decompress(forged)
+    with pytest.raises(C.CodecError, match="cannot hold|does not inflate"):     # and so with the digest forged too
+        C.decompress(jxm.redigest(forged))
 
 
 def test_fallback_block_inflates_at_most_what_it_announces():
