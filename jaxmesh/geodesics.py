@@ -8,10 +8,11 @@ cotangent weights c_ij = ½(cot α_ij + cot β_ij) and t = ℓ̄² by default:
    max(c_ij, 0) (negative weights of obtuse triangles clamped: M + tL⁺ is then an
    M-matrix and u > 0 decays monotonically away from s);
 2. the normalised gradient X = −∇u / |∇u| on every face;
-3. the Poisson problem (L + G) φ = −∇·X, L the cotangent Laplacian (positive
+3. the Poisson problem (L + G + εM) φ = −∇·X, L the cotangent Laplacian (positive
    semidefinite) and G = diag(g) with g = 1 at one vertex of each connected component
-   and 0 elsewhere: the grounding makes it definite and pins the constant of each
-   component, which the Laplacian leaves free (φ is shifted in step 4 anyway).  L's
+   and 0 elsewhere: the grounding pins the constant of each component, which the
+   Laplacian leaves free (φ is shifted in step 4 anyway), and ε = 10⁻¹²/ℓ̄² keeps the
+   rows of vertices without area (degenerate faces) definite.  L's
    diagonal is summed from its weights in float64 on the host (``sparse_solve(laplacian=
    True)``), so the system stays definite, and φ representable, in float32.  The weak
    divergence is (∇·X)_i = −Σ_f A_f X_f · ∇ψ_i;
@@ -118,40 +119,51 @@ def heat_distances(
     arrays = None if not intrinsic else tuple(jnp.asarray(z) for z in (
         triangulation.faces, triangulation.face_edges, triangulation.flips, triangulation.pairs,
         triangulation.edge_pair))
-    labels = _components(mesh, triangulation if intrinsic else None)
+    labels = _components(mesh)
     count = sources.shape[0]
     if count == 0:
         return jnp.zeros((0, mesh.num_vertices), mesh.dtype)
     if count <= block:
-        return _checked(_heat(mesh, sources, t, arrays, labels, boundary=boundary, backend=backend), mesh)
+        return _checked(lambda: _heat(mesh, sources, t, arrays, labels, boundary=boundary, backend=backend), mesh)
     # one compiled block at a time (the last padded with its final source): the program is one block's,
     # whatever the count, and no two blocks' (F, block, 3) intermediates are alive at once
     padded = jnp.concatenate([sources, jnp.broadcast_to(sources[-1:], (-count % block,))])
-    out = [_checked(_heat(mesh, padded[lo:lo + block], t, arrays, labels, boundary=boundary, backend=backend), mesh)
+    out = [_checked(lambda lo=lo: _heat(mesh, padded[lo:lo + block], t, arrays, labels, boundary=boundary,
+                                        backend=backend), mesh)
            for lo in range(0, padded.shape[0], block)]
     return jnp.concatenate(out, axis=0)[:count]
 
 
-def _components(mesh: Mesh, triangulation: IntrinsicTriangulation | None) -> Int[Array, " V"]:
-    """Each vertex's connected component in the edge graph (the intrinsic triangulation has the
-    mesh's), numbered so that the first vertex of each component holds its own index; all 0
-    where the edges are traced (under ``jit`` with ``intrinsic=False``: right for a connected mesh)."""
-    pairs = triangulation.pairs if triangulation is not None else mesh.edges
-    if isinstance(pairs, jax.core.Tracer):
+def _components(mesh: Mesh) -> Int[Array, " V"]:
+    """Each vertex's connected component in the graph of the faces with area (a vertex of degenerate
+    faces only is its own), numbered so that the first vertex of each component holds its own index:
+    the heat flow reaches exactly the vertices of the source's component (the intrinsic triangulation
+    covers the same surface).  All 0 where the mesh is traced: right for a connected mesh."""
+    if isinstance(mesh.vertices, jax.core.Tracer) or isinstance(mesh.faces, jax.core.Tracer):
         return jnp.zeros(mesh.num_vertices, jnp.int32)
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
-    e = np.asarray(pairs)
+    v, f = np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces)
+    f = f[np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1) > 0]
+    e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
     graph = coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), (mesh.num_vertices,) * 2)
     labels = connected_components(graph, directed=False)[1]
     first = np.unique(labels, return_index=True)[1]
     return jnp.asarray(first[labels], jnp.int32)
 
 
-def _checked(result, mesh: Mesh):
-    """The distances of one block, after refusing (on concrete values) a heat flow that underflowed."""
-    distances, lost = result
+def _checked(run, mesh: Mesh):
+    """The distances of one block (``run()``), after refusing (on concrete values) a heat flow that
+    underflowed, and naming a system the sparse solver could not factor inside the compiled program."""
+    try:
+        distances, lost = run()
+    except jax.errors.JaxRuntimeError as err:
+        if "positive definite" not in str(err) and "singular" not in str(err):
+            raise
+        raise ValueError("heat_distances: the heat method's linear systems cannot be factored on this mesh "
+                         "(degenerate or extreme geometry: faces without area, or coordinates far apart in "
+                         "scale)") from None
     if not isinstance(lost, jax.core.Tracer) and bool(jnp.any(lost)):
         raise ValueError(f"heat_distances: the heat flow underflows in {mesh.dtype} on this mesh (it decays by "
                          "exp(−d/ℓ̄) and reaches 0 before the farthest vertex of the source's component), so the "
@@ -213,7 +225,9 @@ def _heat(mesh: Mesh, sources, t, triangulation, labels, *, boundary: str, backe
             u_n = solve(heat_diag, heat_off, delta)
             # a boundary source has u_D = 0: its field is the Neumann one
             u = jnp.where(on[src][None, :], u_n, 0.5 * (u + u_n))
-    zero = (u <= 0) if boundary != "dirichlet" else (u <= 0) & ~on[:, None]    # u_D = 0 on the boundary
+    # u ≤ 0 where the flow reaches in exact arithmetic: a vertex with area, in the source's component
+    # (not on a Dirichlet boundary, where u_D = 0; not a vertex of degenerate faces only, with no weights)
+    zero = (u <= 0) & positive[:, None] if boundary != "dirichlet" else (u <= 0) & (positive & ~on)[:, None]
     lost = jnp.any((labels[:, None] == labels[src][None, :]) & zero, axis=0)          # (k,)
     gu = jnp.einsum("fks,fkd->fsd", u[faces], grad)                   # ∇u per face, (F, k, 3)
     # scaled before normalising: far from the source u is ~1e-21 and |∇u|² underflows in float32
@@ -224,5 +238,6 @@ def _heat(mesh: Mesh, sources, t, triangulation, labels, *, boundary: str, backe
     contrib = area[:, None, None] * jnp.einsum("fkd,fsd->fks", grad, x)   # A_f X_f · ∇ψ_k
     b = jnp.zeros((n, k), dtype).at[flat].add(contrib.reshape(-1, k))
     ground = (labels == jnp.arange(n, dtype=labels.dtype)).astype(dtype)
-    phi = solve(ground, -c, b, laplacian=True)                         # (L + G) φ = b, step 3
+    # (L + G + εM) φ = b, step 3; εM = 10⁻¹² M/ℓ̄² keeps it definite where L has zero rows (zero-area faces)
+    phi = solve(ground + 1e-12 * mass / ell ** 2, -c, b, laplacian=True)
     return jnp.where(lost[:, None], jnp.nan, (phi - phi[src, jnp.arange(k)][None, :]).T), lost

@@ -41,6 +41,7 @@ nonsingular symmetric matrix).
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import importlib.util
 import threading
@@ -194,7 +195,8 @@ class _Factor:
                 raise ValueError("sparse_solve: the matrix is not positive definite (a diagonal entry is <= 0); "
                                  "use backend='lu' for an indefinite matrix")
             try:
-                self._chol = cholespy.CholeskySolverD(n, rows, cols, data, cholespy.MatrixType.COO)
+                with _stdout_to_stderr():          # CHOLMOD prints its warnings on the C stdout
+                    self._chol = cholespy.CholeskySolverD(n, rows, cols, data, cholespy.MatrixType.COO)
             except ValueError as e:          # CHOLMOD: "Matrix is not positive definite!"
                 raise ValueError(f"sparse_solve: the matrix is not positive definite ({e}); use backend='lu' "
                                  "for an indefinite matrix") from None
@@ -224,6 +226,27 @@ class _Factor:
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         return self._solve(rhs)
+
+
+@contextlib.contextmanager
+def _stdout_to_stderr():
+    """File descriptor 1 pointed at 2 for the block: a C library's diagnostics go where
+    diagnostics belong, not into a command's output (``jaxmesh stats --json``)."""
+    import os
+    import sys
+
+    try:
+        sys.stdout.flush()
+        saved = os.dup(1)
+    except (OSError, ValueError):          # no usable fd 1 (embedded interpreters): leave it alone
+        yield
+        return
+    try:
+        os.dup2(2, 1)
+        yield
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
 
 
 def _backward_error(matrix: sp.csr_matrix, x: np.ndarray, b: np.ndarray) -> float:

@@ -185,7 +185,7 @@ def test_the_cli_keeps_attributes_or_says_it_cannot(tmp_path, capsys):
 
 @pytest.mark.slow       # one compile per method
 @pytest.mark.parametrize("name", sorted(METHODS))
-def test_every_method_keeps_the_obj_attributes(tmp_path, name):
+def test_every_method_keeps_the_obj_and_ply_attributes(tmp_path, name):
     src, out = tmp_path / "scan.obj", tmp_path / "out.obj"
     _textured_obj(src)
     mesh = _load(src)
@@ -196,6 +196,15 @@ def test_every_method_keeps_the_obj_attributes(tmp_path, name):
     colours = lambda text: [s.split()[4:] for s in text.split("\n") if s.startswith("v ")]  # noqa: E731
     assert colours(out.read_text()) == colours(src.read_text())
     assert not np.allclose(_load(out).vertices, mesh.vertices)
+    src, out = tmp_path / "scan.ply", tmp_path / "out.ply"
+    rec, _, head = _coloured_ply(src, ascii=False)
+    mesh = jaxmesh.load(src)
+    jaxmesh.save(denoise(mesh, name), out, attributes=jaxmesh.read_attributes(src))
+    data = out.read_bytes()
+    new = np.frombuffer(data, rec.dtype, len(rec), head)
+    np.testing.assert_array_equal(new[["r", "g", "b", "quality"]], rec[["r", "g", "b", "quality"]])
+    assert data[head + rec.nbytes:] == src.read_bytes()[head + rec.nbytes:]
+    assert not np.allclose(np.stack([new[c] for c in "xyz"], 1), np.stack([rec[c] for c in "xyz"], 1))
 
 
 def test_a_dataset_run_keeps_each_inputs_attributes(tmp_path):

@@ -98,6 +98,10 @@ def main(argv: list[str] | None = None) -> int:
     import jax
 
     jax.config.update("jax_enable_x64", True)  # the one place: files are read and written unrounded
+    # a host callback's exception reaches the command as its one error line; JAX's log of the same
+    # exception (a traceback on stderr) would only repeat it
+    callback_log = logging.getLogger("jax._src.callback")
+    level, callback_log.level = callback_log.level, logging.CRITICAL
     # warnings are one stderr line each, whatever filters the caller (a test run with
     # -W error, an embedding program) installed; both are restored on return
     with warnings.catch_warnings():
@@ -107,7 +111,10 @@ def main(argv: list[str] | None = None) -> int:
             from ..compiler import enable_compilation_cache
 
             enable_compilation_cache()
-        return run_command(args._run, args)
+        try:
+            return run_command(args._run, args)
+        finally:
+            callback_log.setLevel(level)
 
 
 def _finish_jax() -> None:
