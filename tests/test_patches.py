@@ -89,6 +89,7 @@ def test_a_zero_normal_row_takes_the_face_out_of_the_trace(ball):
     assert trace == pytest.approx(per_face[keep].sum() / ball.num_faces, rel=1e-10)
 
 
+@pytest.mark.slow   # two whole searches (~6 s)
 def test_ranking_on_patches_finds_the_choice_of_the_whole_mesh(ball, monkeypatch):
     """Taubin at 0, 10, 40 iterations on a noisy sphere: ranked on 8 patches of the sphere (a third of it)
     the order is the whole mesh's, doing nothing's risk is per counted face (the whole mesh's), and the

@@ -107,7 +107,7 @@ def test_two_parameters_and_the_iteration_count(spot_pair):
     assert float(pick.loss) == pytest.approx(min(single.values()), rel=1e-12)
 
 
-@pytest.mark.parametrize("blind", [False, True])
+@pytest.mark.parametrize("blind", [False, pytest.param(True, marks=pytest.mark.slow)])   # the blind loss: ~6 s
 def test_tuning_loss_gradients_match_finite_differences(blind):
     from jaxmesh.tune import TuneOptions
     from jaxmesh.tune.tuner import _loss_function, _make_config
@@ -348,6 +348,7 @@ def test_options_object_keywords_and_a_users_own_method():
         tune(noisy, clean, options={"grid": 4})
 
 
+@pytest.mark.slow   # three tuner compiles (~6 s); the CLI cache test covers reuse across processes
 def test_tuning_again_on_the_same_shapes_does_not_recompile():
     """The static configuration (method, options, fixed parameters) is hashable and
     equal for equal settings, so a second mesh of the same shapes, or the same options

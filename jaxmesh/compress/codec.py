@@ -208,10 +208,9 @@ def compress(mesh: Mesh, keep: float = 0.1, bits: int = 12, *, basis: str = "lap
     flags = (_FALLBACK if code.fallback else 0) | (_UMBRELLA if basis == "umbrella" else 0)
     for sec, data in zip(SECTION_TABLE, sections):
         flags |= sec.flag if data else 0
-    check = _check_sums(out_vertices)
     digest = content_digest(faces_d, labels, ranks, blocks, sections[-1], step, flags)
     head = _HEAD.pack(MAGIC, FORMAT_VERSION, flags, n, len(f), len(ranks), int(bits), float(keep),
-                      step, *check.tolist(), *(len(s) for s in sections), digest)
+                      step, *_check_sums(out_vertices).tolist(), *(len(s) for s in sections), digest)
     body = head + b"".join(sections)
     data = body + struct.pack("<I", zlib.crc32(body))
     out_mesh = Mesh.from_arrays(out_vertices, out_faces, warn=False)

@@ -276,6 +276,7 @@ def test_denoise_auto_says_when_it_ranked_on_patches(capsys, tmp_path, monkeypat
     assert json.loads(capsys.readouterr().out)["auto"]["search_vertices"] == 2562
 
 
+@pytest.mark.slow   # a whole impulsive search from the command line (~9 s); the library path runs by default
 def test_denoise_auto_reads_impulsive_noise_and_says_so(capsys, tmp_path, monkeypatch):
     """A mesh made with `jaxmesh noise --model impulsive` is read as impulsive by the default
     command, which reports the fraction it read and ranks the robust candidates too."""
