@@ -28,9 +28,9 @@ _NAMES = {
 }
 
 #: the public modules and subpackages, attributes of the package
-_MODULES = ("attributes", "batch", "compiler", "compress", "data", "dataset", "denoise", "geodesics", "geometry", "graph", "hash",
-            "intrinsic", "io", "linalg", "mesh", "metrics", "noise", "operators", "render", "sparse", "spectral",
-            "stats", "topology", "transforms", "tune", "vf", "view")
+_MODULES = ("attributes", "batch", "compiler", "compress", "data", "dataset", "denoise", "geodesics", "geometry",
+            "graph", "hash", "intrinsic", "io", "linalg", "mesh", "metrics", "noise", "operators", "render", "sparse",
+            "spectral", "stats", "topology", "transforms", "tune", "vf", "view")
 
 __all__ = [*_NAMES, *_MODULES]
 

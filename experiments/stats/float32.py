@@ -90,9 +90,9 @@ def main() -> None:
     args = ap.parse_args()
     rows = ["# Heat distances and statistics: float32 against float64", "",
             "Regenerate: `.venv/bin/python experiments/stats/float32.py` (needs ../shared/meshes).", "",
-            "Distances: max |d₃₂ − d₆₄| / max d₆₄ over 8 sources. Statistics: the largest relative difference "
-            "over the numbers of `mesh_statistics`' summary (200 sources). The target: within 1e-3, or a clear "
-            "error naming float64.", "",
+            "Distances: max |d₃₂ − d₆₄| / max d₆₄ over 8 sources. Statistics: the largest relative "
+            "difference over the numbers of `mesh_statistics`' summary (200 sources). The target: within 1e-3, "
+            "or a clear error naming float64.", "",
             "| mesh | vertices | distances | statistics | seconds |", "|---|---|---|---|---|"]
     for name in args.meshes:
         start = time.perf_counter()

@@ -14,8 +14,8 @@ from collections.abc import Callable
 from .. import data
 
 __all__ = ["CLIError", "io_arguments", "mesh_arguments", "load_input", "input_attributes", "mesh_source",
-           "check_output", "positional_output", "names_a_mesh_format", "print_record", "with_caveats", "view_argument", "check_view",
-           "write_view"]
+           "check_output", "positional_output", "names_a_mesh_format", "print_record", "with_caveats",
+           "view_argument", "check_view", "write_view"]
 
 
 class CLIError(ValueError):
