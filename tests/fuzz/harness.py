@@ -84,8 +84,11 @@ def _worker(suite: str, mem_mb: int, timeout_s: float) -> None:
         out.flush()
 
 
-def run(suite: str, indices, *, mem_mb: int = 200, timeout_s: float = 20.0, grace_s: float = 30.0):
-    """Run the cases ``indices`` of ``suite``; returns a list of result dicts."""
+def run(suite: str, indices, *, mem_mb: int = 200, timeout_s: float = 20.0, grace_s: float = 30.0,
+        recycle: int = 200):
+    """Run the cases ``indices`` of ``suite``; returns a list of result dicts.  A worker is
+    replaced after ``recycle`` cases: each compiled program stays in its address space, and
+    hundreds of them reach the ``mem_mb`` limit, where XLA fails to map memory and crashes."""
     results, todo = [], list(indices)
     while todo:
         proc = subprocess.Popen(
@@ -93,8 +96,9 @@ def run(suite: str, indices, *, mem_mb: int = 200, timeout_s: float = 20.0, grac
              "--timeout", str(timeout_s)],
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
         )
-        first = True
-        while todo:
+        first, served = True, 0
+        while todo and served < recycle:
+            served += 1
             i = todo[0]
             proc.stdin.write(f"{i}\n")
             proc.stdin.flush()
