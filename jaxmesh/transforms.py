@@ -3,11 +3,15 @@
 from __future__ import annotations
 
 import jax.numpy as jnp
+import numpy as np
 
 from ._private import lift
 from .mesh import Mesh
 
-__all__ = ["normalize", "bounding_box_center", "unit_frame", "to_frame", "from_frame"]
+__all__ = ["normalize", "bounding_box_center", "unit_frame", "to_frame", "from_frame", "far_vertices", "FAR_RATIO"]
+
+#: a used vertex farther than this many times the median distance from the median position is far
+FAR_RATIO = 1e4
 
 
 def bounding_box_center(mesh: Mesh):
@@ -84,3 +88,26 @@ def normalize(mesh: Mesh, *, return_transform: bool = False):
     c, s = unit_frame(mesh)
     out = to_frame(mesh, c, s)
     return (out, c, s) if return_transform else out
+
+
+def far_vertices(mesh: Mesh, ratio: float = FAR_RATIO) -> np.ndarray:
+    """The used vertices that lie more than ``ratio`` times the median distance d̃ from the
+    median position: ‖v_i − med(v)‖ > ratio · med_j ‖v_j − med(v)‖.  Such a vertex (a corrupt
+    coordinate, 1e30) sets :func:`unit_frame` alone, and the other vertices lose their
+    precision in it; the command line warns about them.
+
+    Arguments:
+        mesh: a single mesh.
+        ratio: the distance, in median distances, beyond which a vertex is far.
+
+    Returns:
+        The far vertices' indices, (k,) int (empty for an ordinary mesh)."""
+    if mesh.batch_shape:
+        raise ValueError(f"far_vertices needs a single mesh, got batch shape {mesh.batch_shape}")
+    used = np.flatnonzero(np.asarray(mesh.degree) > 0)
+    x = np.asarray(mesh.vertices, np.float64)[used]
+    if len(x) == 0:
+        return used
+    d = np.linalg.norm(x - np.median(x, axis=0), axis=1)
+    typical = np.median(d)
+    return used[d > ratio * typical] if typical > 0 else used[:0]

@@ -47,8 +47,16 @@ def load_input(args):
     if not args.input:
         raise CLIError("no input mesh: name IN or use --sample NAME")
     from ..io import load
+    from ..transforms import far_vertices
 
-    return args.input, load(args.input)
+    mesh = load(args.input)
+    far = far_vertices(mesh)
+    if far.size:
+        at = [float(c) for c in mesh.vertices[int(far[0])]]
+        print(f"jaxmesh: warning: {args.input}: {far.size} vertex(es) lie more than 1e4 times the typical distance "
+              f"from the rest (vertex {int(far[0])} at {at}: a corrupt coordinate?); they set the working "
+              "frame alone and the other vertices lose their precision in it; remove them first", file=sys.stderr)
+    return args.input, mesh
 
 
 def input_attributes(source: str | None, out: str):

@@ -327,3 +327,19 @@ def test_a_reference_of_another_connectivity_is_named_not_broadcast(tmp_path, ca
     jaxmesh.save(jaxmesh.Mesh.from_arrays(v, f), b)
     code, err = _cli(capsys, "denoise", a, tmp_path / "o.ply", "--method", "taubin", "--reference", b)
     assert code == 1 and err == [f"jaxmesh: error: --reference {b} does not have the connectivity of {a}"]
+
+
+def test_a_far_vertex_is_named_before_it_wrecks_the_frame(tmp_path, capsys, tetra):
+    from jaxmesh.transforms import far_vertices
+
+    v = np.vstack([np.asarray(tetra.vertices), [[1e30, 0.0, 0.0]]])
+    f = np.vstack([np.asarray(tetra.faces), [[1, 4, 2]]])
+    far = jaxmesh.Mesh.from_arrays(v, f, warn=False)          # its far face reads as degenerate
+    np.testing.assert_array_equal(far_vertices(far), [4])
+    assert far_vertices(jaxmesh.data.load_sample("spot", dtype=np.float64)).size == 0
+    unused = jaxmesh.Mesh.from_arrays(v, np.asarray(tetra.faces), warn=False)      # an isolated far vertex: no
+    assert far_vertices(unused).size == 0                                          # frame uses it
+    path = tmp_path / "far.ply"
+    jaxmesh.save(far, path)
+    assert main(["denoise", str(path), str(tmp_path / "out.ply"), "--method", "taubin", "--iterations", "1"]) == 0
+    assert "1 vertex(es) lie more than 1e4 times the typical distance" in capsys.readouterr().err
