@@ -102,6 +102,9 @@ def check_output(path: str, force: bool, mesh: bool = False) -> None:
     p = Path(path)
     if p.is_dir():
         raise CLIError(f"{path} is a directory; name the file to write")
+    if p.is_symlink() and not p.exists() and not force:
+        raise CLIError(f"{path} is a symbolic link to {os.readlink(p)}, which does not exist; use --force to "
+                       "replace the link with the file")
     if p.exists() and not force:
         raise CLIError(f"{path} exists; use --force to replace it")
     parent = p.parent if str(p.parent) else Path(".")

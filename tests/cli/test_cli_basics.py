@@ -124,3 +124,12 @@ def test_the_demo_shows_the_blind_default_beside_the_filters(capsys, tmp_path):
     normal = lambda ln: float(ln.split("°")[0].split()[-1])  # noqa: E731
     assert normal(rows["auto"]) < normal(rows["taubin"]) < normal(rows["noisy"])
     assert (tmp_path / "bunny_auto.ply").is_file()
+
+
+def test_a_dangling_symlink_output_is_named_as_such(tmp_path, capsys):
+    link = tmp_path / "out.ply"
+    link.symlink_to(tmp_path / "missing" / "x.ply")
+    assert main(["noise", "--sample", "spot", str(link), "--sigma", "0.1"]) == 1
+    assert "is a symbolic link to" in capsys.readouterr().err
+    assert main(["noise", "--sample", "spot", str(link), "--sigma", "0.1", "--force"]) == 0
+    assert not link.is_symlink() and link.is_file()
