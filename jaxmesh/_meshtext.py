@@ -113,13 +113,9 @@ def _only_ignored(buf: np.ndarray, starts: np.ndarray, ends: np.ndarray, other: 
     return True
 
 
-def _plain_obj(data: bytes):
-    """The fast reading of a plain OBJ, or None where the file is not one: every vertex line
-    ``v x y z`` and every face line ``f a b c`` (positive indices, ``a/t/n`` corners allowed) with
-    nothing else on it, no tabs or line continuations, every other line blank, a comment or an
-    ignored statement, the file ending with a line end.  The lines are sorted with numpy and each
-    number goes through the same ``float`` and ``int`` as in :func:`read_obj`, so a plain file reads
-    the same either way; anything else (and every error) is left to :func:`read_obj`."""
+def _obj_lines(data: bytes):
+    """(bytes as uint8, line starts, line ends, ``v`` lines, ``f`` lines) of an OBJ without a
+    byte-order mark's encodings, tabs or line continuations that ends with a line end; else None."""
     if data.startswith(b"\xef\xbb\xbf"):
         data = data[3:]
     if (not data.endswith(b"\n") or b"\\" in data or b"\t" in data or data.startswith((b"\xff\xfe", b"\xfe\xff"))):
@@ -129,7 +125,36 @@ def _plain_obj(data: bytes):
     starts = np.concatenate(([0], ends[:-1] + 1))
     key = np.where(buf[np.minimum(starts + 1, len(buf) - 1)] == ord(" "), buf[starts], 0)
     key[starts == ends] = 0
-    is_v, is_f = key == ord("v"), key == ord("f")
+    return buf, starts, ends, key == ord("v"), key == ord("f")
+
+
+def only_positions_and_triangles(data: bytes) -> bool:
+    """Whether an OBJ holds ``v x y z`` and ``f a b c`` lines (plain indices), comments and blank
+    lines, and nothing else (vectorised; False where that is not certain)."""
+    lines = _obj_lines(data)
+    if lines is None or b"/" in data:
+        return False
+    buf, starts, ends, is_v, is_f = lines
+    other = ~(is_v | is_f)
+    if not np.all((starts[other] == ends[other]) | (buf[np.minimum(starts[other], len(buf) - 1)] == ord("#"))):
+        return False
+    word = (buf != ord(" ")) & (buf != ord("\n")) & (buf != ord("\r"))
+    begins = word & ~np.concatenate(([False], word[:-1]))             # the first byte of each token
+    tokens = np.add.reduceat(begins.astype(np.int64), starts) if len(starts) else starts
+    return bool(np.all(tokens[is_v | is_f] == 4))
+
+
+def _plain_obj(data: bytes):
+    """The fast reading of a plain OBJ, or None where the file is not one: every vertex line
+    ``v x y z`` and every face line ``f a b c`` (positive indices, ``a/t/n`` corners allowed) with
+    nothing else on it, no tabs or line continuations, every other line blank, a comment or an
+    ignored statement, the file ending with a line end.  The lines are sorted with numpy and each
+    number goes through the same ``float`` and ``int`` as in :func:`read_obj`, so a plain file reads
+    the same either way; anything else (and every error) is left to :func:`read_obj`."""
+    lines = _obj_lines(data)
+    if lines is None:
+        return None
+    buf, starts, ends, is_v, is_f = lines
     if not _only_ignored(buf, starts, ends, ~(is_v | is_f)):
         return None
     nv, nf = int(is_v.sum()), int(is_f.sum())

@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from . import _ply
+from ._meshtext import only_positions_and_triangles
 from .mesh import Mesh
 
 __all__ = ["MeshAttributes", "read_attributes", "rewrite", "vertex_property"]
@@ -117,10 +118,16 @@ def vertex_property(attributes: MeshAttributes, name: str) -> np.ndarray:
     layout, data = attributes._layout, attributes._data
     if not layout["ascii"]:
         return np.frombuffer(data, dtype, layout["count"], layout["start"])[name].copy()
-    lines = [line for line in data[layout["head"]:].split(b"\n") if line.strip()]
-    rows = lines[layout["skip"]:][:layout["count"]]
+    lines, rows = _ascii_vertex_rows(attributes)
     column = dtype.names.index(name)
-    return np.array([row.split()[column] for row in rows], dtype[name].newbyteorder("="))
+    return np.array([lines[k].split()[column] for k in rows], dtype[name].newbyteorder("="))
+
+
+def _ascii_vertex_rows(attributes: MeshAttributes) -> tuple[list[bytes], list[int]]:
+    """An ASCII PLY's body lines and the indices of its vertex records among them (one per line)."""
+    layout = attributes._layout
+    lines = attributes._data[layout["head"]:].split(b"\n")
+    return lines, [k for k, line in enumerate(lines) if line.strip()][layout["skip"]:][:layout["count"]]
 
 
 def _vector_areas(mesh: Mesh) -> np.ndarray:
@@ -140,6 +147,8 @@ def _unit(n: np.ndarray) -> np.ndarray:
 def _obj_layout(data: bytes):
     """(kinds, layout, vertex count): the lines of ``v`` and ``vn``, and each face record's
     corner count and the ``vn`` of its corners (-1: none)."""
+    if only_positions_and_triangles(data):              # the common plain file, without a Python loop
+        return (), {}, 0
     if b"\\\n" in data or b"\\\r\n" in data:
         raise ValueError("OBJ line continuations: the file cannot be rewritten line by line")
     bom = b"\xef\xbb\xbf" if data.startswith(b"\xef\xbb\xbf") else b""
@@ -297,9 +306,7 @@ def _ply_rewrite(attributes: MeshAttributes, mesh: Mesh, vertices: np.ndarray) -
         for name, v in values.items():
             records[name] = v
         return data[:start] + records.tobytes() + data[start + count * dtype.itemsize:]
-    head = layout["head"]
-    lines = data[head:].split(b"\n")
-    rows = [k for k, line in enumerate(lines) if line.strip()][layout["skip"]:][:count]
+    lines, rows = _ascii_vertex_rows(attributes)
     columns = {name: dtype.names.index(name) for name in values}
     text = {name: ("%.17g" if dtype[name].itemsize == 8 else "%.9g").encode() for name in values}
     for r, k in enumerate(rows):
@@ -311,4 +318,4 @@ def _ply_rewrite(attributes: MeshAttributes, mesh: Mesh, vertices: np.ndarray) -
         for name, col in columns.items():
             tokens[col] = text[name] % values[name][r]
         lines[k] = b" ".join(tokens) + end
-    return data[:head] + b"\n".join(lines)
+    return data[:layout["head"]] + b"\n".join(lines)

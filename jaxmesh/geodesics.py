@@ -42,7 +42,7 @@ import numpy as np
 from jaxtyping import Array, Float, Int
 
 from ._private import safe_norm, segment_sum_scalars
-from .geometry import edge_lengths, face_corners, hat_gradients, mean_edge_length
+from .geometry import edge_lengths, face_areas, face_corners, hat_gradients, mean_edge_length
 from .intrinsic import (IntrinsicTriangulation, cotangents_from_lengths, intrinsic_delaunay, layout_from_lengths,
                         replay_flips)
 from .linalg import sparse_solve
@@ -144,8 +144,7 @@ def _components(mesh: Mesh) -> Int[Array, " V"]:
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
-    v, f = np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces)
-    f = f[np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1) > 0]
+    f = np.asarray(mesh.faces)[np.asarray(face_areas(mesh)) > 0]
     e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
     graph = coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), (mesh.num_vertices,) * 2)
     labels = connected_components(graph, directed=False)[1]

@@ -219,3 +219,16 @@ def test_a_dataset_run_keeps_each_inputs_attributes(tmp_path):
     assert not np.array_equal(new["x"], rec["x"])
     keep = lambda p: [s for s in p.read_text().split("\n") if not s.startswith(("v ", "vn "))]  # noqa: E731
     assert keep(out / "tex.obj") == keep(src / "tex.obj")
+
+
+@pytest.mark.parametrize("text,plain", [
+    ("v 1 2 3\nv 0 1 0\nv 0 0 1\nf 1 2 3\n", True), ("# c\n\nv 1  2 3\nv 0 1 0\nv 0 0 1\nf 1 2 3\n", True),
+    ("v 1 2 3 0.5 0.5 0.5\nv 0 1 0\nv 0 0 1\nf 1 2 3\n", False), ("v 1 2 3\nv 0 1 0\nv 0 0 1\nvt 0 0\nf 1 2 3\n", False),
+    ("v 1 2 3\nv 0 1 0\nv 0 0 1\ng x\nf 1 2 3\n", False), ("v 1 2 3\nv 0 1 0\nv 0 0 1\nf 1/1 2/2 3/3\n", False)])
+def test_the_vectorised_plain_obj_check_agrees_with_the_line_reading(tmp_path, text, plain):
+    from jaxmesh._meshtext import only_positions_and_triangles
+
+    path = tmp_path / "m.obj"
+    path.write_text(text)
+    assert only_positions_and_triangles(text.encode()) == plain
+    assert (jaxmesh.read_attributes(path) is None) == plain
