@@ -1,4 +1,4 @@
-"""Codec speed and peak memory against Draco in the same run (issue 7).
+"""Codec speed and peak memory against Draco in the same run.
 
     .venv/bin/python benchmarks/bench_compress.py [--meshes bunny big] [--keep 0.05] [--bits 10] [--qp 8]
 

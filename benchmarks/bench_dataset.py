@@ -16,7 +16,7 @@ from and written to disk:
   per bucket shape, read-ahead and write-behind threads);
 * *loop*: for each file ``load`` → :func:`~jaxmesh.denoise.denoise_in_unit_frame`
   (``umbrella_flow``) → ``save``: one compile per distinct mesh size;
-* *runner-previous*: the runner with the defaults before Session 13 (batches
+* *runner-previous*: the runner with its former defaults (batches
   of 16, ladder 2^¼);
 * *runner-xla-defaults*: the runner with XLA's own CPU compiler settings (the
   other jaxmesh variants run as the ``jaxmesh`` command does, with
@@ -124,7 +124,7 @@ def run_variant(name: str, data: Path, out: Path, batch_size: int, ladder: float
 
         start = time.perf_counter()
         if name.startswith("runner"):
-            if name == "runner-previous":      # the defaults before Session 13: batches of 16, ladder 2^¼
+            if name == "runner-previous":      # the former defaults: batches of 16, ladder 2^¼
                 batch_size, ladder = 16, 2 ** 0.25
             s = denoise_files([str(data)], out, "umbrella_flow", {"iterations": ITERATIONS, "lam": LAM},
                               batch_size=batch_size, ladder=ladder, overwrite=True)

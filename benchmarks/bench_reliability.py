@@ -1,4 +1,4 @@
-"""Reliability figures of issue 15, measured on this machine:
+"""Reliability figures, measured on this machine:
 
 * peak RSS of ``jaxmesh stats`` and ``jaxmesh denoise --method kernel --lam auto``
   on a mesh (default: the shared igea, 134k vertices);

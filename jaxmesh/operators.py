@@ -21,7 +21,6 @@ from .mesh import Mesh
 __all__ = [
     "degree",
     "neighbor_sum",
-    "adjacency",
     "laplacian",
     "normalized_laplacian",
     "umbrella",
@@ -58,9 +57,6 @@ def neighbor_sum(mesh: Mesh, x: Float[Array, "*batch V d"]) -> Float[Array, "*ba
     Returns:
         (*batch, V, d) array."""
     return segment_sum_rows(x[..., mesh.dst, :], mesh.src, mesh.num_vertices)
-
-
-adjacency = neighbor_sum
 
 
 def laplacian(mesh: Mesh, x: Float[Array, "*batch V d"]) -> Float[Array, "*batch V d"]:

@@ -218,15 +218,10 @@ def test_registry_rejects_bad_arguments(tetra):
             assert lo < method.params[p].default < hi, (name, p)
 
 
-def test_renamed_methods_keep_their_old_names_with_a_deprecation_warning(tetra):
-    from jaxmesh.denoise import DEPRECATED_NAMES, as_method
+def test_as_method_refuses_what_is_not_a_name_or_a_method():
+    from jaxmesh.denoise import as_method
 
-    assert DEPRECATED_NAMES == {"laplacian": "umbrella_flow", "anisotropic": "cauchy_diffusion"}
-    for old, new in DEPRECATED_NAMES.items():
-        assert old not in METHODS and new in METHODS
-        with pytest.warns(DeprecationWarning, match=f"'{old}' is deprecated .* use '{new}'"):
-            assert as_method(old) is METHODS[new]
-    with pytest.warns(DeprecationWarning, match="use 'umbrella_flow'"):
-        old = denoise(tetra, "laplacian", iterations=2).vertices
-    np.testing.assert_array_equal(old, denoise(tetra, "umbrella_flow", iterations=2).vertices)
+    assert as_method("umbrella_flow") is METHODS["umbrella_flow"]
+    with pytest.raises(ValueError, match="unknown method 'laplacian'"):
+        as_method("laplacian")
     assert_refused(as_method, 3, param="method", message="registry name or a Method", error=TypeError)

@@ -10,14 +10,12 @@ from pathlib import Path
 
 import jaxmesh
 
-DEPRECATED = {"jaxmesh.attacks"}   # an alias of jaxmesh.hash.attacks that warns on import
-
 
 def public_functions() -> dict:
     """Every function named in a public module's ``__all__`` (private and CLI modules
     left out), by its defining module and name."""
     names = ["jaxmesh"] + [m.name for m in pkgutil.walk_packages(jaxmesh.__path__, "jaxmesh.")
-                           if "._" not in m.name and ".cli" not in m.name and m.name not in DEPRECATED]
+                           if "._" not in m.name and ".cli" not in m.name]
     out = {}
     for name in names:
         module = importlib.import_module(name)

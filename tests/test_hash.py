@@ -10,7 +10,7 @@ import pytest
 import jaxmesh
 from jaxmesh.hash import attacks
 from jaxmesh.hash import (THRESHOLDS, cosine_similarity, euclidean_mst, euclidean_mst_length,
-                          graph_mst_length, laplace_beltrami_eigenvalues, laplace_beltrami_host,
+                          graph_mst_length, laplace_beltrami_eigenvalues,
                           mesh_hash, metis_partition, robust_hash, similarity, submesh,
                           tsallis_entropy, verdict)
 from jaxmesh.hash.robust import affine_normalize
@@ -91,7 +91,6 @@ def lb_loop(v, f):
 def test_laplace_beltrami_against_loop_and_jax_operator(bumpy_grid):
     v, f = np.asarray(bumpy_grid.vertices), np.asarray(bumpy_grid.faces)
     ref = lb_loop(v, f)
-    np.testing.assert_allclose(laplace_beltrami_host(v, f).toarray(), ref, rtol=1e-10, atol=1e-10)
     np.testing.assert_allclose(jaxmesh.sparse.laplace_beltrami_matrix(bumpy_grid).toarray(), ref,
                                rtol=1e-10, atol=1e-10)
 
@@ -331,27 +330,20 @@ def test_attack_registry():
 
 
 def test_host_laplace_beltrami_uses_the_one_degenerate_face_rule():
-    """A sliver of height 1e-17: the host matrix (hash spectra) equals the JAX-defined
-    one (before: entries up to 6e34 from its own zero-area rule)."""
-    from jaxmesh.hash.spectrum import laplace_beltrami_host
+    """A sliver of height 1e-17: the hash spectra's host matrix S = D^½ L_c D^½ (D = diag(3/η))
+    is similar to the JAX-defined L = D L_c, S = D^-½ L D^½ (before: entries up to 6e34 from
+    its own zero-area rule)."""
+    from jaxmesh.hash.spectrum import symmetric_laplace_beltrami
     from jaxmesh.sparse import laplace_beltrami_matrix
 
     v = np.array([[0, 0, 0], [1, 0, 0], [0.5, 1e-17, 0], [0.5, 0.5, 1]], float)
     f = np.array([[0, 1, 2], [0, 1, 3], [1, 2, 3], [2, 0, 3]])
-    host = laplace_beltrami_host(v, f).toarray()
-    ref = laplace_beltrami_matrix(jaxmesh.Mesh.from_arrays(v, f, warn=False)).toarray()
+    host = symmetric_laplace_beltrami(v, f).toarray()
+    lap = laplace_beltrami_matrix(jaxmesh.Mesh.from_arrays(v, f, warn=False)).toarray()
+    area = 0.5 * np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1)
+    d = np.sqrt(3 / np.bincount(f.ravel(), np.repeat(area, 3)))            # (3/η)^½, η_i the incident faces' area
     assert np.abs(host).max() < 100
-    np.testing.assert_allclose(host, ref, rtol=1e-12, atol=1e-12)
-
-
-def test_the_old_attacks_module_is_a_deprecated_alias():
-    import importlib
-    import sys
-
-    sys.modules.pop("jaxmesh.attacks", None)
-    with pytest.warns(DeprecationWarning, match="moved to jaxmesh.hash.attacks"):
-        old = importlib.import_module("jaxmesh.attacks")
-    assert old.simplify is attacks.simplify and sorted(old.__all__) == sorted(attacks.__all__)
+    np.testing.assert_allclose(host, lap * (1 / d)[:, None] * d[None, :], rtol=1e-12, atol=1e-12)
 
 
 def test_systematic_surface_sampling_follows_the_areas():

@@ -104,13 +104,10 @@ def test_no_import_cycles():
     assert cycles == [], "import cycles: " + "; ".join(" -> ".join(c) for c in cycles)
 
 
-DEPRECATED_ALIASES = {"jaxmesh.attacks"}     # warn on import; checked in test_hash.py
-
-
 def _public_modules():
     yield jaxmesh
     for info in pkgutil.walk_packages(jaxmesh.__path__, "jaxmesh."):
-        if not info.name.rsplit(".", 1)[-1].startswith("_") and info.name not in DEPRECATED_ALIASES:
+        if not info.name.rsplit(".", 1)[-1].startswith("_"):
             yield importlib.import_module(info.name)
 
 
@@ -127,7 +124,7 @@ def test_subpackages_are_attributes_and_typed():
 
 
 def test_modules_and_functions_stay_small():
-    """House rules (issue 16): no module over 400 lines, no function over 80."""
+    """House rules: no module over 400 lines, no function over 80."""
     too_long = []
     for path in ROOT.rglob("*.py"):
         text = path.read_text()

@@ -13,10 +13,10 @@ import jaxmesh
 from conftest import grid_arrays
 from jaxmesh.denoise import METHODS, kernel_diffusion, laplacian_smoothing
 from jaxmesh.metrics import visual_error
+from jaxmesh.transforms import unit_frame
 from jaxmesh.tune import (
     NOISE_ESTIMATORS,
     estimate_noise,
-    frame,
     noisy_visual_error_expectation,
     relative_error,
     search_space,
@@ -41,7 +41,7 @@ def sphere(level=2, radius=1.0, offset=0.0):
 
 
 def in_frame(noisy, *meshes):
-    c, s = frame(noisy)
+    c, s = unit_frame(noisy)
     return [m.with_vertices((m.vertices - c[..., None, :]) / s) for m in (noisy, *meshes)]
 
 

@@ -1,4 +1,4 @@
-"""Connectivity coder cost on every shared mesh (issue 7: at most 3 bits per vertex on manifold meshes).
+"""Connectivity coder cost on every shared mesh (the target: at most 3 bits per vertex on manifold meshes).
 
     .venv/bin/python experiments/compress/connectivity.py
 

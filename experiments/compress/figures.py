@@ -1,4 +1,4 @@
-"""Thesis ch.3 figures 3.2 and 3.4–3.12, and umbrella vs Karni–Gotsman at equal r (issue 7).
+"""Thesis ch.3 figures 3.2 and 3.4–3.12, and umbrella vs Karni–Gotsman at equal r.
 
     .venv/bin/python experiments/compress/figures.py [--quick]
 

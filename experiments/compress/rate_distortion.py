@@ -1,4 +1,4 @@
-"""Rate–distortion of the jaxmesh .jxm codec against Draco (issue 7).
+"""Rate–distortion of the jaxmesh .jxm codec against Draco.
 
     .venv/bin/python experiments/compress/rate_distortion.py [--meshes bunny fandisk armadillo cow]
 

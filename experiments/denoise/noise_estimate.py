@@ -45,7 +45,7 @@ def main() -> None:
              "Regenerate: `.venv/bin/python experiments/denoise/noise_estimate.py` (needs ../shared/meshes).", "",
              "σ in mean edge lengths ℓ̄ of the unit-diagonal mesh, seed 0. *iso*: isotropic noise; *nrm*: along "
              "the normals. *clean*: the estimate on the clean mesh, in ℓ̄ (its own roughness read as noise). "
-             "Target band at 0.02ℓ̄ (issue 14): [0.8, 1.25].", "",
+             "Target band at 0.02ℓ̄: [0.8, 1.25].", "",
              "| mesh | estimator | clean (ℓ̄) | " + " | ".join(f"{m[:3]} {s}" for s, m in cols) + " |",
              "|---|---|---|" + "---|" * len(cols)]
     for name in args.meshes:

@@ -6,9 +6,9 @@ each choice against the oracle Taubin of ``feature_table.json``.
     .venv/bin/python experiments/denoise/sigma_sensitivity.py [--cells cow:0.1:normal ...] [--settings auto true_sigma]
 
 Prints one JSON line per cell: for each setting (error in degrees, method,
-parameters, σ̂/σ, seconds).  Session 13 ran it before the noise estimator's
-projection normals changed (``docs/guides/denoise.md`` quotes that run); the
-camelhead cell's σ̂ has changed since (0.90σ then).
+parameters, σ̂/σ, seconds).  ``docs/guides/denoise.md`` quotes a run made
+before the noise estimator's projection normals changed; the camelhead cell's
+σ̂ has changed since (0.90σ then).
 """
 
 from __future__ import annotations

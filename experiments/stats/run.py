@@ -50,7 +50,7 @@ def geodesic_errors(mesh, pairs: int, seed: int) -> dict[str, np.ndarray]:
                        for t in row] for s, row in zip(src, tgt)])
     est = {"edges": stats.graph_distances(mesh, src), "knn": stats.graph_distances(mesh, src, "knn"),
            "heat": stats.heat_geodesics(mesh, src),
-           # the statistic before issue 18: the mesh's own triangles, Neumann boundary
+           # the former statistic: the mesh's own triangles, Neumann boundary
            "heat_own": np.asarray(heat_distances(mesh, src, boundary="neumann", intrinsic=False))}
     ok = exact > 0
     return {k: ((d[np.arange(20)[:, None], tgt] - exact) / np.where(ok, exact, 1))[ok] for k, d in est.items()}
@@ -108,7 +108,7 @@ def main() -> None:
                  f"Relative error (estimate − exact) / exact on {args.pairs} seeded vertex pairs per mesh "
                  "(20 sources); exact = edge-flip geodesics (Sharp & Crane 2020, potpourri3d).", "",
                  "Heat method: on the intrinsic Delaunay triangulation with the averaged boundary "
-                 "condition (the statistic since issue 18), and on the mesh's own triangles with the "
+                 "condition (the statistic), and on the mesh's own triangles with the "
                  "Neumann condition (before).", "",
                  "| mesh | edge graph mean / max | kNN graph (k=8) mean / min | heat, intrinsic Delaunay: "
                  "mean abs / max abs | heat, own triangles (before): mean abs / max abs |",

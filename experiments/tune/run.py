@@ -31,7 +31,8 @@ import jaxmesh  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from shared_meshes import MESHES, load  # noqa: E402
 from jaxmesh.denoise import METHODS, kernel_diffusion  # noqa: E402
-from jaxmesh.tune import estimate_noise, frame, relative_error, tune  # noqa: E402
+from jaxmesh.transforms import unit_frame  # noqa: E402
+from jaxmesh.tune import estimate_noise, relative_error, tune  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 OUT = ROOT / "experiments" / "results" / "tune"
@@ -52,7 +53,7 @@ def _grid_point(lam, clean_n, noisy_n):
 
 def run_case(name, clean, sigma, iterations):
     noisy = jaxmesh.add_noise(clean, sigma, 0)
-    c, s = frame(noisy)
+    c, s = unit_frame(noisy)
     noisy_n = noisy.with_vertices((noisy.vertices - c) / s)
     clean_n = clean.with_vertices((clean.vertices - c) / s)
     lo, hi = METHODS["kernel"].params["lam"].bounds

@@ -29,12 +29,12 @@ from .vertex_rings import VertexRings, VertexTier, vertex_rings
 from .kde import kernel_density
 from .laplacian import hc_smoothing, laplacian_smoothing, taubin_smoothing
 from .normal_filtering import FaceRings, face_rings, filter_normals, normal_filtering, ring_sum
-from .registry import DEPRECATED_NAMES, METHODS, Method, Param, as_method, denoise, diverged
+from .registry import METHODS, Method, Param, as_method, denoise, diverged
 from .framed import denoise_in_unit_frame
 from .selection import hold, pin_weights, region_weights, selection_mask
 
 __all__ = [
-    "METHODS", "DEPRECATED_NAMES", "Method", "Param", "as_method", "denoise", "diverged", "progress", "denoise_in_unit_frame",
+    "METHODS", "Method", "Param", "as_method", "denoise", "diverged", "progress", "denoise_in_unit_frame",
     "VARIANTS", "kernel_diffusion", "kernel_step", "kernel_weights", "neighborhood_covariances",
     "VertexRings", "VertexTier", "vertex_rings",
     "hold", "region_weights", "pin_weights", "selection_mask",

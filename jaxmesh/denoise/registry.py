@@ -36,7 +36,7 @@ from .impulse_repair import impulse_repair
 from .l0 import l0_denoising
 from .normal_filtering import normal_filtering
 
-__all__ = ["Param", "Method", "METHODS", "DEPRECATED_NAMES", "as_method", "denoise", "diverged"]
+__all__ = ["Param", "Method", "METHODS", "as_method", "denoise", "diverged"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -279,15 +279,9 @@ METHODS: dict[str, Method] = {
 }
 
 
-#: old registry names, accepted with a ``DeprecationWarning`` until 0.3 (see CHANGELOG.md):
-#: "laplacian" also named the operator L = D − A, "anisotropic" also described "geometric"
-DEPRECATED_NAMES = {"laplacian": "umbrella_flow", "anisotropic": "cauchy_diffusion"}
-
-
 def as_method(method: "str | Method") -> Method:
     """The :class:`Method` named ``method`` in :data:`METHODS`, or ``method`` itself
-    when it is a ``Method`` already (a user's own, registered or not).  A name in
-    :data:`DEPRECATED_NAMES` gives its new method, with a ``DeprecationWarning``.
+    when it is a ``Method`` already (a user's own, registered or not).
 
     Arguments:
         method: a registry name or a :class:`Method`.
@@ -298,11 +292,6 @@ def as_method(method: "str | Method") -> Method:
         return method
     if not isinstance(method, str):
         raise TypeError(f"method must be a registry name or a Method, got {type(method).__name__}")
-    if method in DEPRECATED_NAMES:
-        new = DEPRECATED_NAMES[method]
-        warnings.warn(f"method name {method!r} is deprecated (removed in 0.3): use {new!r}",
-                      DeprecationWarning, stacklevel=3)
-        method = new
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; choose one of {sorted(METHODS)}")
     return METHODS[method]

@@ -19,7 +19,7 @@ from .compare import THRESHOLDS, similarity, verdict
 from .result import MeshHash, cosine_similarity
 from .robust import robust_hash, robust_similarity
 from .spanning_tree import euclidean_mst, euclidean_mst_length, graph_mst_length, tsallis_entropy
-from .spectrum import laplace_beltrami_eigenvalues, laplace_beltrami_host
+from .spectrum import laplace_beltrami_eigenvalues
 from .thesis import mesh_hash
 
 __all__ = [
@@ -39,7 +39,6 @@ __all__ = [
     "graph_mst_length",
     "tsallis_entropy",
     "laplace_beltrami_eigenvalues",
-    "laplace_beltrami_host",
 ]
 
 #: The hash functions by name (the CLI's ``--method``).

@@ -19,7 +19,7 @@ import scipy.sparse.linalg as spla
 
 from ..geometry import cotangents_of_corners
 
-__all__ = ["cotangent_parts", "laplace_beltrami_host", "symmetric_laplace_beltrami",
+__all__ = ["cotangent_parts", "symmetric_laplace_beltrami",
            "laplace_beltrami_eigenvalues"]
 
 
@@ -50,21 +50,6 @@ def cotangent_parts(vertices: np.ndarray, faces: np.ndarray) -> tuple[sp.csr_mat
     lc = (sp.diags(np.asarray(w.sum(axis=1)).ravel()) - w).tocsr()
     eta = np.bincount(f.ravel(), weights=np.repeat(0.5 * double_area, 3), minlength=n)
     return lc, eta
-
-
-def laplace_beltrami_host(vertices: np.ndarray, faces: np.ndarray) -> sp.csr_matrix:
-    """The thesis's L = D − W = diag(3/η) L_c (rows with η_i = 0 are zero); equals
-    :func:`jaxmesh.sparse.laplace_beltrami_matrix` without building a :class:`Mesh`.
-
-    Arguments:
-        vertices: positions, (V, 3).
-        faces: triangles, (F, 3).
-
-    Returns:
-        L, (V, V) CSR."""
-    lc, eta = cotangent_parts(vertices, faces)
-    scale = np.divide(3.0, eta, out=np.zeros_like(eta), where=eta > 0)
-    return (sp.diags(scale) @ lc).tocsr()
 
 
 def symmetric_laplace_beltrami(vertices: np.ndarray, faces: np.ndarray) -> sp.csr_matrix:

@@ -26,11 +26,11 @@ from .objectives import OBJECTIVES, noisy_visual_error_expectation, relative_err
 from .space import Coordinate, search_space
 from .batched import tune_batch, tune_shared
 from .options import TuneOptions
-from .tuner import TuneResult, frame, tune, tune_lambda
+from .tuner import TuneResult, tune, tune_lambda
 from .run import AUTO, DenoiseRun, denoise_with_tuning, split_auto
 
 __all__ = [
-    "tune", "tune_lambda", "tune_batch", "tune_shared", "TuneOptions", "TuneResult", "frame",
+    "tune", "tune_lambda", "tune_batch", "tune_shared", "TuneOptions", "TuneResult",
     "AUTO", "DenoiseRun", "denoise_with_tuning", "split_auto",
     "estimate_noise", "estimate_tangential_noise", "noise_sigma", "checked_sigma", "SIGMA_RANGE",
     "umbrella_square_row_norms", "NOISE_ESTIMATORS",

@@ -12,7 +12,7 @@ import numpy as np
 from ..batch import PaddedBatch, pad_batch, unpad
 from ..mesh import Mesh
 from ..metrics import visual_error
-from ..transforms import to_frame as _to_frame
+from ..transforms import to_frame
 from ..transforms import unit_frame as frame
 from .noise_level import checked_sigma, noise_sigma
 from .objectives import noisy_visual_error_expectation
@@ -50,8 +50,8 @@ def _shared_search(noisy: Mesh, clean: Mesh | None, sigma, key, cfg: _Config):  
     """One u for a padded batch of meshes: the loss is the mean of the per-mesh
     relative losses (each mesh in its own frame)."""
     centre, scale = jax.vmap(frame)(noisy)
-    noisy_n = jax.vmap(_to_frame)(noisy, centre, scale)
-    clean_n = None if clean is None else jax.vmap(_to_frame)(clean, centre, scale)
+    noisy_n = jax.vmap(to_frame)(noisy, centre, scale)
+    clean_n = None if clean is None else jax.vmap(to_frame)(clean, centre, scale)
     sigma_n = None if sigma is None else sigma / scale
     keys = jax.random.split(key, scale.shape[0])
 

@@ -60,18 +60,10 @@ from .options import TuneOptions
 from .search import search
 from .space import Coordinate, search_space
 
-__all__ = ["TuneResult", "TuneOptions", "tune", "tune_lambda", "frame"]
+__all__ = ["TuneResult", "TuneOptions", "tune", "tune_lambda"]
 
 _BAD_LOSS = 1e6          # stands in for a non-finite loss (relative units: 1 = the noisy input)
 _GRID_DEFAULT = {1: 6, 2: 4}   # points per coordinate; 3 for three or more coordinates
-
-
-# --------------------------------------------------------------------------- frame
-
-
-#: the library's one working frame (:func:`jaxmesh.transforms.unit_frame`)
-frame = unit_frame
-_to_frame = to_frame
 
 
 # --------------------------------------------------------------------------- configuration
@@ -164,9 +156,9 @@ def _loss_function(cfg: _Config, noisy: Mesh, clean: Mesh | None, sigma, key, au
 
 def _tune_one(noisy: Mesh, clean: Mesh | None, sigma, key, cfg: _Config, aux: dict):
     """Tune on one mesh (any units); jittable and vmappable over meshes."""
-    centre, scale = frame(noisy)
-    noisy_n = _to_frame(noisy, centre, scale)
-    clean_n = None if clean is None else _to_frame(clean, centre, scale)
+    centre, scale = unit_frame(noisy)
+    noisy_n = to_frame(noisy, centre, scale)
+    clean_n = None if clean is None else to_frame(clean, centre, scale)
     sigma_n = None if sigma is None else sigma / scale
     loss = _loss_function(cfg, noisy_n, clean_n, sigma_n, key, aux)
     out = search(loss, cfg, noisy.dtype, noisy.num_vertices)

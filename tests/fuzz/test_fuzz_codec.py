@@ -1,5 +1,5 @@
 """Untrusted ``.jxm`` input: the fuzz suite (fast part by default, 2 500 cases under -m slow)
-and one test per defect class the audit of issue 15 found."""
+and one test per defect class a codec audit found."""
 
 from __future__ import annotations
 

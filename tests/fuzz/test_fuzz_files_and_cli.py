@@ -1,5 +1,5 @@
 """Untrusted mesh files and hostile CLI use: the fuzz suites (fast part by default,
-long part under -m slow) and one test per defect class of issue 15."""
+long part under -m slow) and one test per defect class an audit of files and the CLI found."""
 
 from __future__ import annotations
 
