@@ -29,7 +29,7 @@ _NAMES = {
 
 #: the public modules and subpackages, attributes of the package
 _MODULES = ("attributes", "batch", "compiler", "compress", "data", "dataset", "denoise", "geodesics", "geometry",
-            "graph", "hash", "intrinsic", "io", "linalg", "mesh", "metrics", "noise", "operators", "render", "sparse",
+            "graph", "hash", "host", "intrinsic", "io", "linalg", "mesh", "metrics", "noise", "operators", "render", "sparse",
             "spectral", "stats", "topology", "transforms", "tune", "vf", "view")
 
 __all__ = [*_NAMES, *_MODULES]
@@ -62,6 +62,7 @@ if TYPE_CHECKING:   # what static tools see (explicit re-exports); at run time e
     from . import geometry as geometry
     from . import graph as graph
     from . import hash as hash
+    from . import host as host
     from . import intrinsic as intrinsic
     from . import io as io
     from . import linalg as linalg

@@ -46,15 +46,15 @@ def lag_covariances(mesh, z: np.ndarray) -> tuple[float, float, float]:
 
 def order_readings(mesh, orders=range(1, 7), quantile: float = 0.1) -> list[float]:
     """The clean mesh's "flat" reading, in ℓ̄, with the high-pass K^p for each p."""
-    from jaxmesh.sparse import umbrella_matrix
-    from jaxmesh.tune.noise_level import _patch_statistic, _projection_normals, _two_ring
+    from jaxmesh.host import HostMesh
+    from jaxmesh.tune.noise_level import _patch_statistic, projection_normals
     import scipy.sparse as sp
 
-    k = umbrella_matrix(mesh).tocsr()
-    n = np.asarray(_projection_normals(mesh), np.float64)
+    host = HostMesh(mesh)
+    k = host.umbrella
+    n = np.asarray(projection_normals(host), np.float64)
     y = np.asarray(mesh.vertices, np.float64)
-    ring = _two_ring(mesh) + sp.identity(mesh.num_vertices, format="csr")
-    ring.data[:] = 1
+    ring = (host.two_ring + sp.identity(mesh.num_vertices, format="csr")).tocsr()
     unit = np.random.default_rng(0).standard_normal((3, len(y), 1)) * n
     kp, out = sp.identity(len(y), format="csr"), []
     for p in range(1, max(orders) + 1):

@@ -56,6 +56,7 @@ from .._exported import stored_jit
 from .._private import PATCH_STREAM, library_key
 from .._threads import concurrent_map
 from ..geometry import face_normals, mean_edge_length, vertex_normals
+from ..host import HostMesh
 from ..mesh import Mesh
 from .blend import (BLEND_DRAWS, BLEND_SALT, BLEND_SIZE, SNAPSHOT_FACTORS, best_mixture, check_snapshots,
                     snapshot_rows, tilt_gram)
@@ -192,22 +193,21 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
     Returns:
         An :class:`AutoResult`: the method and parameters chosen (or the blend), the
         denoised mesh, the table of estimated risks."""
-    from ..denoise import METHODS
-
     _check(noisy, list(candidates) + list(impulsive_candidates), paths, draws, a, noise_model, blend_draws,
            blend_size, snapshots, search_vertices, antithetic, race_keep)
     clock = [time.perf_counter()]
-    law = _noise_law(noisy, sigma, noise_model)
+    host = HostMesh(noisy)
+    law = _noise_law(host, sigma, noise_model)
     clock.append(time.perf_counter())
     if law["law"] == "none":
         return _unchanged(noisy, clock[1] - clock[0])
     if law["law"] == "impulsive":
         candidates = list(candidates) + [c for c in impulsive_candidates if c not in candidates]
-    search, s_vertex, core = noisy, law["vertex_sigma"], None
+    search, s_vertex, core = host, law["vertex_sigma"], None
     if search_vertices is not None and noisy.num_vertices > PATCH_FACTOR * search_vertices:
         seed = int(jax.random.randint(library_key(key, PATCH_STREAM), (), 0, np.iinfo(np.int32).max))
         patches = sample_patches(noisy, search_vertices, seed=seed)
-        search, core = patches.mesh, patches.core_faces
+        search, core = HostMesh(patches.mesh), patches.core_faces
         s_vertex = s_vertex if np.ndim(s_vertex) == 0 else np.asarray(s_vertex)[patches.vertices]
     clock.append(time.perf_counter())
     impulsive = (law["fraction"], law["sigma"]) if law["law"] == "impulsive" else None
@@ -216,7 +216,7 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
     components, risk, noisy_risk, table, estimator = ranked
     clock.append(time.perf_counter())
     y = noisy.vertices
-    auxes = {m: METHODS[m].prepare(noisy) for m in {c[0] for c in components}}
+    auxes = {m: host.aux(m) for m in {c[0] for c in components}}
     path_methods = _path_methods(paths)
     runs = concurrent_map(lambda c: jax.block_until_ready(run_setting(noisy, y, c[0], c[1], auxes[c[0]],
                                                                       c[0] in path_methods)), components)
@@ -227,7 +227,7 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
     blind_caveats(noisy, law["sigma"], law["estimated"], risk / noisy_risk if noisy_risk > 0 else np.inf)
     return AutoResult(method, params, noisy.with_vertices(out), law["sigma"], law["estimated"], law["tangential"],
                       risk, noisy_risk, bool(risk < noisy_risk), table, components, law["law"], law["fraction"],
-                      search.num_vertices, seconds, estimator)
+                      search.mesh.num_vertices, seconds, estimator)
 
 
 def _unchanged(noisy: Mesh, seconds: float) -> AutoResult:
@@ -276,17 +276,16 @@ def _held_out(noisy: Mesh, pilot: Mesh, nu_pilot, n, ell, core, auxes: dict, imp
     return nu, draw, int(measured.sum())
 
 
-def _rank(noisy: Mesh, core, ell, candidates, paths, s_vertex, s_t, draws, blend_draws, blend_size, snapshots, a,
+def _rank(host: HostMesh, core, ell, candidates, paths, s_vertex, s_t, draws, blend_draws, blend_size, snapshots, a,
           key, antithetic=False, race_keep=None, impulsive=None) -> tuple:
-    """The search of :func:`choose_denoiser` on ``noisy`` (the whole mesh or its patches, where only the
-    faces of ``core`` count): (components, risk, doing nothing's risk, table), risks per counted face.
+    """The search of :func:`choose_denoiser` on ``host``'s mesh (the whole mesh or its patches, where only
+    the faces of ``core`` count): (components, risk, doing nothing's risk, table), risks per counted face.
     ``impulsive``: (p̂, σ̂₁) to rank by the held-out estimate where it measures enough faces."""
-    from ..denoise import METHODS
-
+    noisy = host.mesh
     y = noisy.vertices
     methods = ({c.method for c in candidates} | {"guided_normal"} | _path_methods(paths)
                | ({"impulse_repair"} if impulsive else set()))
-    auxes = {m: METHODS[m].prepare(noisy) for m in methods}
+    auxes = {m: host.aux(m) for m in methods}
     pilot = noisy.with_vertices(run_setting(noisy, y, "guided_normal", {}, auxes["guided_normal"]))
     nu, n = _pilot_normals(pilot)
     counted = np.ones(noisy.num_faces, bool) if core is None else np.asarray(core, bool)
@@ -322,11 +321,12 @@ def _rank(noisy: Mesh, core, ell, candidates, paths, s_vertex, s_t, draws, blend
     return components, risk * per_face, nothing * per_face, table, "recorrupted" if held is None else "held_out"
 
 
-def _noise_law(noisy: Mesh, sigma, noise_model: str) -> dict:
+def _noise_law(host: HostMesh, sigma, noise_model: str) -> dict:
     """The recorruption's law (module docstring): σ (σ₁ for impulsive noise), each vertex's
     normal level s_i (or σ), σ_t, whether σ was estimated, the law's name and p̂."""
+    noisy = host.mesh
     if noise_model in ("auto", "impulsive"):
-        found = estimate_impulsive_noise(noisy)
+        found = estimate_impulsive_noise(host)
         if found.impulsive or noise_model == "impulsive":
             found = read_after_repair(noisy, found)
             s, estimated = noise_sigma(noisy, sigma) if sigma is not None else (found.sigma, True)
@@ -335,12 +335,12 @@ def _noise_law(noisy: Mesh, sigma, noise_model: str) -> dict:
                                  "give the noise level (CLI: --noise-sigma) or another noise model")
             return {"sigma": s, "vertex_sigma": found.vertex_sigma() * (s / found.sigma), "tangential": 0.0,
                     "estimated": estimated, "law": "impulsive", "fraction": found.fraction}
-    s, estimated = (estimate_noise(noisy), True) if sigma is None else noise_sigma(noisy, sigma)
+    s, estimated = (estimate_noise(host), True) if sigma is None else noise_sigma(host, sigma)
     if s == 0:
         return {"sigma": 0.0, "law": "none"}
     if not np.isfinite(s):
         raise ValueError(f"the noise estimate of this mesh is {s}; give the noise level (CLI: --noise-sigma)")
     s_t = {"normal": 0.0, "isotropic": s}.get(noise_model)
-    s_t = min(estimate_tangential_noise(noisy), s) if s_t is None else s_t
+    s_t = min(estimate_tangential_noise(host), s) if s_t is None else s_t
     return {"sigma": s, "vertex_sigma": s, "tangential": s_t, "estimated": estimated, "law": "gaussian",
             "fraction": 1.0}

@@ -51,8 +51,9 @@ import scipy.sparse as sp
 
 from ..denoise.impulse_repair import mixture_posterior, scale_mixture
 from ..geometry import mean_edge_length, vertex_normals
+from ..host import HostMesh, as_host
 from ..mesh import Mesh
-from .noise_level import _normal_high_pass, _projection_normals
+from .noise_level import _normal_high_pass, projection_normals
 
 __all__ = ["ImpulsiveNoise", "estimate_impulsive_noise", "read_after_repair", "IMPULSIVE_RATIO", "IMPULSIVE_FLOOR",
            "IMPULSIVE_MIN_FRACTION", "IMPULSIVE_MIN_VERTICES", "MEAN_FIELD_STEPS", "EM_STEPS"]
@@ -101,21 +102,20 @@ class ImpulsiveNoise:
         return np.sqrt(self.sigma0**2 + self.posterior * (self.sigma**2 - self.sigma0**2))
 
 
-def estimate_impulsive_noise(mesh: Mesh) -> ImpulsiveNoise:
+def estimate_impulsive_noise(mesh: Mesh | HostMesh) -> ImpulsiveNoise:
     """Fit the two-level noise law of the module docstring to ``mesh`` and decide
     whether it is impulsive.
 
     Arguments:
-        mesh: a single mesh.
+        mesh: a single mesh, or its :class:`~jaxmesh.host.HostMesh`.
 
     Returns:
         An :class:`ImpulsiveNoise`."""
-    from ..sparse import umbrella_matrix
-
-    if mesh.batch_shape:
+    if isinstance(mesh, Mesh) and mesh.batch_shape:
         raise ValueError("estimate_impulsive_noise takes one mesh; loop over a batch")
-    k = umbrella_matrix(mesh)
-    c2 = (k @ k).tocsr()
+    host = as_host(mesh)
+    mesh = host.mesh
+    c2 = host.umbrella_square
     sq = c2.multiply(c2).tocsr()
     g2 = np.asarray(sq.sum(axis=1)).ravel()
     ok = g2 > 0
@@ -123,7 +123,7 @@ def estimate_impulsive_noise(mesh: Mesh) -> ImpulsiveNoise:
         raise ValueError("estimate_impulsive_noise: the mesh has no vertex with neighbours")
     own = np.where(ok, c2.diagonal() ** 2 / np.where(ok, g2, 1.0), 0.0)
     others = sp.diags(1 / np.where(ok, g2, 1.0)) @ (sq - sp.diags(sq.diagonal()))
-    z = np.where(ok, _normal_high_pass(mesh, mesh.vertices, _projection_normals(mesh)) / np.sqrt(np.where(ok, g2, 1)),
+    z = np.where(ok, _normal_high_pass(mesh, mesh.vertices, projection_normals(host)) / np.sqrt(np.where(ok, g2, 1)),
                  0.0)
     p, v0, v1 = (float(v) for v in _scale_mixture(jnp.asarray(z[ok] ** 2), EM_STEPS))
     delta = max(v1 - v0, 0.0) / float(np.mean(own[ok]))

@@ -60,6 +60,7 @@ import scipy.sparse as sp
 
 from .._exported import stored_jit
 from ..geometry import mean_edge_length, vertex_normals
+from ..host import HostMesh, as_host
 from ..mesh import Mesh
 from ..operators import umbrella
 
@@ -84,19 +85,15 @@ SIGMA_RANGE = (1e-7, 1e3)
 _MAD_TO_SIGMA = 1.482602218505602  # 1 / Φ⁻¹(3/4)
 
 
-def umbrella_square_row_norms(mesh: Mesh) -> np.ndarray:
+def umbrella_square_row_norms(mesh: Mesh | HostMesh) -> np.ndarray:
     """‖row_i(K²)‖ for every vertex (host, scipy; 0 for isolated vertices).
 
     Arguments:
-        mesh: a single mesh.
+        mesh: a single mesh, or its :class:`~jaxmesh.host.HostMesh`.
 
     Returns:
         (V,) float64."""
-    from ..sparse import umbrella_matrix
-
-    k = umbrella_matrix(mesh)
-    k2 = (k @ k).tocsr()
-    return np.sqrt(np.asarray(k2.multiply(k2).sum(axis=1)).ravel())
+    return as_host(mesh).umbrella_square_row_norms
 
 
 #: umbrella steps (λ = ½) smoothing the mesh whose normals the residuals are projected on
@@ -112,10 +109,20 @@ def _projection_normals(mesh: Mesh):
     return vertex_normals(laplacian_smoothing(mesh, 0.5, PROJECTION_SMOOTHING), "area")
 
 
-def _normal_high_pass(mesh: Mesh, u, normals=None) -> np.ndarray:
+def projection_normals(host: HostMesh):
+    """The projection normals n of the module docstring, computed once per mesh.
+
+    Arguments:
+        host: the mesh's :class:`~jaxmesh.host.HostMesh`.
+
+    Returns:
+        (V, 3), the mesh's dtype."""
+    return host.memo("projection_normals", lambda: _projection_normals(host.mesh))
+
+
+def _normal_high_pass(mesh: Mesh, u, normals) -> np.ndarray:
     """n_i · (K² u)_i, n the projection normals (host array)."""
-    n = _projection_normals(mesh) if normals is None else normals
-    return np.asarray(_k2_parts(mesh, jnp.asarray(u, mesh.dtype), n)[0], dtype=np.float64)
+    return np.asarray(_k2_parts(mesh, jnp.asarray(u, mesh.dtype), normals)[0], dtype=np.float64)
 
 
 @stored_jit
@@ -133,14 +140,20 @@ def _patch_statistic(z2: np.ndarray, patches: sp.csr_matrix, ok: np.ndarray, qua
     return float(np.quantile(mean, quantile)) if mean.size else 0.0
 
 
-def _flat_patch_sigma(mesh: Mesh, g: np.ndarray, high_pass: np.ndarray, n_jax, quantile: float = 0.1,
+def _patches(host: HostMesh) -> sp.csr_matrix:
+    """The 2-ring patches: R₂ + I, 0/1."""
+    return host.memo("two_ring_patches", lambda: (host.two_ring + sp.identity(host.mesh.num_vertices, format="csr")
+                                                  ).tocsr())
+
+
+def _flat_patch_sigma(host: HostMesh, g: np.ndarray, high_pass: np.ndarray, n_jax, quantile: float = 0.1,
                       draws: int = 4) -> float:
     """σ̂ from the flattest patches, calibrated by simulation (module docstring);
     ``g`` = ‖row_i(K²)‖, ``high_pass`` = n · K² y, ``n_jax`` the projection normals n."""
+    mesh = host.mesh
     ok = g > 0
     gs = np.where(ok, g, 1.0)
-    ring = _two_ring(mesh) + sp.identity(mesh.num_vertices, format="csr")
-    ring.data[:] = 1
+    ring = _patches(host)
     observed = _patch_statistic((high_pass / gs) ** 2, ring, ok, quantile)
     n = np.asarray(n_jax, dtype=np.float64)
     rng = np.random.default_rng(0)
@@ -149,29 +162,17 @@ def _flat_patch_sigma(mesh: Mesh, g: np.ndarray, high_pass: np.ndarray, n_jax, q
     return float(np.sqrt(observed / unit)) if unit > 0 else 0.0
 
 
-def _two_ring(mesh: Mesh) -> sp.csr_matrix:
-    from ..sparse import adjacency_matrix
-
-    a = adjacency_matrix(mesh)
-    a.data[:] = 1
-    ring = (a + a @ a).tocsr()
-    ring.setdiag(0)
-    ring.eliminate_zeros()
-    return ring
-
-
-def _quadric_residuals(mesh: Mesh) -> np.ndarray:
+def _quadric_residuals(host: HostMesh) -> np.ndarray:
     """r_i / √(1 + (M_i⁻¹)₀₀) for every vertex with a usable fit (module docstring)."""
-    from ..geometry import mean_edge_length
-
+    mesh = host.mesh
     y = np.asarray(mesh.vertices, dtype=np.float64)
     nv = y.shape[0]
-    adj = _two_ring(mesh)
+    adj = host.two_ring
     rows = np.repeat(np.arange(nv), np.diff(adj.indptr))
     cols = adj.indices
     n1 = np.asarray(vertex_normals(mesh.astype(jnp.float64) if mesh.dtype != jnp.float64 else mesh, "area"),
                     dtype=np.float64)
-    a1 = _one_ring_sum(mesh, n1)
+    a1 = n1 + host.adjacency @ n1
     n = a1 / np.maximum(np.linalg.norm(a1, axis=1, keepdims=True), 1e-300)
     t1 = np.cross(n, np.where(np.abs(n[:, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]]))
     t1 /= np.maximum(np.linalg.norm(t1, axis=1, keepdims=True), 1e-300)
@@ -194,39 +195,35 @@ def _quadric_residuals(mesh: Mesh) -> np.ndarray:
     return ell * (-c0) / np.sqrt(1 + inv00)
 
 
-def _one_ring_sum(mesh: Mesh, values: np.ndarray) -> np.ndarray:
-    from ..sparse import adjacency_matrix
-
-    return values + adjacency_matrix(mesh) @ values
-
-
-def estimate_noise(mesh: Mesh, method: str = "min") -> float:
+def estimate_noise(mesh: Mesh | HostMesh, method: str = "min") -> float:
     """σ̂ of the module docstring, in the mesh's units (equivariant: scaling the
     mesh by s scales σ̂ by s; translation and rotation leave it unchanged).
     ``method``: "min" (default), "flat", "umbrella" or "quadric".
 
     Arguments:
-        mesh: a single mesh.
+        mesh: a single mesh, or its :class:`~jaxmesh.host.HostMesh`.
         method: ``"min"``, ``"flat"``, ``"umbrella"`` or ``"quadric"``.
 
     Returns:
         σ̂, in the mesh's units."""
-    if mesh.batch_shape:
+    if isinstance(mesh, Mesh) and mesh.batch_shape:
         raise ValueError("estimate_noise takes one mesh; loop over a batch")
     if method not in NOISE_ESTIMATORS:
         raise ValueError(f"method must be one of {NOISE_ESTIMATORS}, got {method!r}")
+    host = as_host(mesh)
+    mesh = host.mesh
     if method == "quadric":
-        r = _quadric_residuals(mesh)
+        r = _quadric_residuals(host)
         # too small or too irregular for a quadric: fall back
-        return _mad_sigma(r) if r.size else estimate_noise(mesh, "umbrella")
-    g = umbrella_square_row_norms(mesh)           # K² and n·K²y once, for either estimator or both
+        return _mad_sigma(r) if r.size else estimate_noise(host, "umbrella")
+    g = host.umbrella_square_row_norms
     ok = g > 0
     if not ok.any():
         raise ValueError("estimate_noise: the mesh has no vertex with neighbours")
-    n = _projection_normals(mesh)
+    n = projection_normals(host)
     high_pass = _normal_high_pass(mesh, mesh.vertices, n)
     umbrella_sigma = _mad_sigma(high_pass[ok] / g[ok]) if method != "flat" else np.inf
-    flat_sigma = _flat_patch_sigma(mesh, g, high_pass, n) if method != "umbrella" else np.inf
+    flat_sigma = _flat_patch_sigma(host, g, high_pass, n) if method != "umbrella" else np.inf
     return min(umbrella_sigma, flat_sigma)
 
 
@@ -245,7 +242,7 @@ def _tangent_frames(mesh: Mesh, n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return t1, np.cross(n, t1)
 
 
-def estimate_tangential_noise(mesh: Mesh, quantile: float = 0.1, draws: int = 2) -> float:
+def estimate_tangential_noise(mesh: Mesh | HostMesh, quantile: float = 0.1, draws: int = 2) -> float:
     """σ̂_t, the noise's standard deviation *within* the surface (per tangential
     axis), in the mesh's units: the "flat" statistic of the module docstring on
     the tangential part t_i = (I − n_i n_iᵀ)(K² y)_i, the ``quantile`` of the
@@ -256,22 +253,23 @@ def estimate_tangential_noise(mesh: Mesh, quantile: float = 0.1, draws: int = 2)
     (``experiments/denoise/noise_estimate.py`` measures it on clean meshes).
 
     Arguments:
-        mesh: a single mesh.
+        mesh: a single mesh, or its :class:`~jaxmesh.host.HostMesh`.
         quantile: the quantile of the patch means.
         draws: the calibration draws.
 
     Returns:
         σ̂_t, in the mesh's units."""
-    if mesh.batch_shape:
+    if isinstance(mesh, Mesh) and mesh.batch_shape:
         raise ValueError("estimate_tangential_noise takes one mesh; loop over a batch")
-    g = umbrella_square_row_norms(mesh)
+    host = as_host(mesh)
+    mesh = host.mesh
+    g = host.umbrella_square_row_norms
     ok = g > 0
     if not ok.any():
         raise ValueError("estimate_tangential_noise: the mesh has no vertex with neighbours")
     gs = np.where(ok, g, 1.0)
-    n = _projection_normals(mesh)
-    ring = _two_ring(mesh) + sp.identity(mesh.num_vertices, format="csr")
-    ring.data[:] = 1
+    n = projection_normals(host)
+    ring = _patches(host)
 
     def statistic(u) -> float:
         t = np.asarray(_k2_parts(mesh, jnp.asarray(u, mesh.dtype), n)[1], dtype=np.float64)
@@ -292,20 +290,22 @@ def _mad_sigma(r: np.ndarray) -> float:
     return float(_MAD_TO_SIGMA * np.median(np.abs(r - np.median(r))))
 
 
-def noise_sigma(mesh: Mesh, sigma=None) -> tuple[float, bool]:
+def noise_sigma(mesh: Mesh | HostMesh, sigma=None) -> tuple[float, bool]:
     """(σ, estimated) for blind tuning: ``sigma`` checked (finite, > 0) or, when
     None, :func:`estimate_noise`, refused when it is not positive (a mesh too
     small, or too exactly smooth, for the estimator: give σ instead).
 
     Arguments:
-        mesh: a single mesh.
+        mesh: a single mesh, or its :class:`~jaxmesh.host.HostMesh`.
         sigma: a given σ, or None to estimate.
 
     Returns:
         (σ, estimated)."""
+    host = as_host(mesh)
+    mesh = host.mesh
     if sigma is not None:
         return float(checked_sigma(mesh, sigma)), False
-    s = estimate_noise(mesh)
+    s = estimate_noise(host)
     if not (np.isfinite(s) and s > 0):
         raise ValueError(
             f"the noise of this mesh cannot be estimated (estimate {s:g} from {mesh.num_vertices} vertices: "
