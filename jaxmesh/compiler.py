@@ -36,10 +36,20 @@ The same call sets the folder's ``exported/`` subfolder as the store of
 lowered: the persistent cache spares a process XLA's compile but not the tracing and
 lowering that come before its lookup.  ``JAXMESH_CACHE_DIR=off`` (or ``--no-cache``)
 turns both off; deleting the folder empties both.
+
+**Releasing compiled programs.**  Every XLA executable holds some of the
+process's memory mappings, and JAX keeps every program it compiled.  A process
+that compiles without end (a dataset run of the blind default compiles its
+search for each new mesh size) passes the kernel's ``vm.max_map_count`` (65,530
+by default) and XLA's next compile fails ("Cannot allocate memory") or crashes.
+:func:`release_compiled_programs` drops them all (``jax.clear_caches``) once the
+process holds more than :data:`MAP_LIMIT` mappings; the dataset runner calls it
+after each batch.
 """
 
 from __future__ import annotations
 
+import gc
 import math
 import os
 import sys
@@ -49,7 +59,8 @@ from pathlib import Path
 from ._exported import set_store
 
 __all__ = ["prefer_fast_cpu_compiles", "CPU_COMPILE_FLAG", "MEASURED_JAXLIB", "enable_compilation_cache",
-           "default_cache_dir", "CACHE_MIN_COMPILE_SECONDS", "CACHE_MAX_BYTES", "CACHE_OFF", "EXPORTED_FOLDER"]
+           "default_cache_dir", "CACHE_MIN_COMPILE_SECONDS", "CACHE_MAX_BYTES", "CACHE_OFF", "EXPORTED_FOLDER",
+           "MAP_LIMIT", "memory_maps", "release_compiled_programs"]
 
 #: the flag added to XLA_FLAGS
 CPU_COMPILE_FLAG = "--xla_cpu_use_fusion_emitters=false"
@@ -61,6 +72,9 @@ CACHE_MIN_COMPILE_SECONDS = 0.0
 CACHE_MAX_BYTES = 1 << 30
 #: the subfolder of the cache where the search's lowered programs are kept (:mod:`jaxmesh._exported`)
 EXPORTED_FOLDER = "exported"
+#: the memory mappings past which :func:`release_compiled_programs` drops the compiled programs
+#: (under half of the kernel's default ``vm.max_map_count``, 65,530)
+MAP_LIMIT = 30_000
 #: values of ``JAXMESH_CACHE_DIR`` that turn the persistent cache off
 CACHE_OFF = ("off", "0", "none", "false", "no", "")
 
@@ -157,3 +171,35 @@ def enable_compilation_cache(path: str | os.PathLike | None = None, *,
         warnings.warn(f"the search's programs are not kept: {folder / EXPORTED_FOLDER}: {err.strerror or err}",
                       UserWarning, stacklevel=2)
     return folder
+
+
+def memory_maps() -> int:
+    """The memory mappings this process holds (lines of ``/proc/self/maps``).
+
+    Arguments:
+
+    Returns:
+        Their count; 0 where the system has no such file (no such limit to watch)."""
+    try:
+        with open("/proc/self/maps", "rb") as f:
+            return sum(1 for _ in f)
+    except OSError:
+        return 0
+
+
+def release_compiled_programs(limit: int = MAP_LIMIT) -> bool:
+    """Drop every compiled program JAX keeps (``jax.clear_caches``) once the process holds
+    more than ``limit`` memory mappings (module docstring); below it, keep them.
+
+    Arguments:
+        limit: the mappings tolerated.
+
+    Returns:
+        True if the programs were dropped."""
+    if memory_maps() <= limit:
+        return False
+    import jax
+
+    jax.clear_caches()
+    gc.collect()
+    return True

@@ -5,7 +5,6 @@ promotion that raises."""
 
 from __future__ import annotations
 
-import gc
 import inspect
 import json
 import os
@@ -51,21 +50,11 @@ jax.config.update("jax_numpy_dtype_promotion", "strict")
 jax.config.update("jax_numpy_rank_promotion", "raise")
 
 import jaxmesh  # noqa: E402
+from jaxmesh.compiler import release_compiled_programs  # noqa: E402
 
 SHARED_MESHES = Path(
     os.environ.get("JAXMESH_SHARED_MESHES", Path(__file__).resolve().parents[1].parent / "shared" / "meshes")
 )
-
-
-_MAP_LIMIT = 30_000   # of the kernel's vm.max_map_count (65,530 by default)
-
-
-def _memory_maps() -> int:
-    try:
-        with open("/proc/self/maps", "rb") as f:
-            return sum(1 for _ in f)
-    except OSError:      # not Linux: no such limit to watch
-        return 0
 
 
 @pytest.fixture(autouse=True, scope="module")
@@ -74,11 +63,9 @@ def _release_compiled_programs():
     memory mappings.  Every XLA executable holds some; a whole-suite process that
     keeps them all passes the kernel's vm.max_map_count (65,530) and XLA crashes
     (SIGSEGV) in its next compile.  Below the limit the caches are kept, so modules
-    share compiled programs."""
+    share compiled programs (:func:`jaxmesh.compiler.release_compiled_programs`)."""
     yield
-    if _memory_maps() > _MAP_LIMIT:
-        jax.clear_caches()
-        gc.collect()
+    release_compiled_programs()
 
 
 # The suite runs with jaxtyping + beartype checking jaxmesh's annotations (pyproject's

@@ -112,3 +112,16 @@ def test_malloc_arenas_capped_unless_the_user_set_them(monkeypatch):
     monkeypatch.delenv("MALLOC_ARENA_MAX")
     glibc = sys.platform.startswith("linux") and platform.libc_ver()[0] == "glibc"
     assert limit_malloc_arenas() is glibc
+
+
+def test_compiled_programs_are_released_past_the_mapping_limit():
+    """Below the limit the programs are kept; past it (limit 0) jax.clear_caches drops them, so the
+    next call compiles again.  /proc/self/maps exists on the Linux CI."""
+    import jax
+
+    f = jax.jit(lambda x: x * 2 + 1)
+    f(jnp.ones(3))
+    assert compiler.memory_maps() > 0 and f._cache_size() == 1
+    assert not compiler.release_compiled_programs(limit=10**9) and f._cache_size() == 1
+    assert compiler.release_compiled_programs(limit=0) and f._cache_size() == 0
+    assert float(f(jnp.ones(3))[0]) == 3.0 and f._cache_size() == 1

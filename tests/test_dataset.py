@@ -48,10 +48,18 @@ def test_plan_covers_every_mesh_once_and_buckets_share_a_shape():
     ("taubin", {"iterations": 7}),
     pytest.param("kernel", {"lam": 0.02, "iterations": 3}, marks=pytest.mark.slow),
     ("bilateral_normal", {"normal_iterations": 2, "vertex_iterations": 3})])
-def test_outputs_equal_per_mesh_calls(tmp_path, method, params):
+def test_outputs_equal_per_mesh_calls(tmp_path, method, params, monkeypatch):
+    """Also with every compiled program dropped after each batch (as past the mapping limit)."""
+    import jaxmesh.dataset.runner as runner
+
+    released = []
+    monkeypatch.setattr(runner, "release_compiled_programs",
+                        lambda: released.append(jaxmesh.compiler.release_compiled_programs(limit=0)))
     paths = write_dataset(tmp_path / "in", 3 if method == "bilateral_normal" else 7)   # compiled per mesh
     s = denoise_files([str(tmp_path / "in")], tmp_path / "out", method, params, batch_size=2)
     assert (s.done, s.skipped, s.failed) == (len(paths), 0, 0)
+    assert all(released) and len(released) >= 2                 # after each batch
+    assert method != "bilateral_normal" or len(released) == len(paths)     # mesh by mesh: one batch each
     for p in paths:
         want = denoise_in_unit_frame(jaxmesh.load(str(p)), method, **params)
         got = jaxmesh.load(str(tmp_path / "out" / p.name))

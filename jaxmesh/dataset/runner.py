@@ -35,6 +35,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..batch import batch_spec, pad_batch
+from ..compiler import release_compiled_programs
 from ..mesh import Mesh, to_device
 from . import supervision
 from .streams import Report, Writer, read_ahead
@@ -330,6 +331,7 @@ def denoise_files(inputs: Sequence[str | Path], out_dir: str | Path, method: str
             for k, noisy in zip(batch.items, meshes):
                 _settle(records[k], results[k], noisy, items[k], params, seconds, writer, log, folder)
             finished += len(batch.items)
+            release_compiled_programs()
             if progress is not None:
                 progress(finished, len(todo))
     finally:   # what was computed is written, even when interrupted
