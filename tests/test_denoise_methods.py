@@ -225,3 +225,24 @@ def test_as_method_refuses_what_is_not_a_name_or_a_method():
     with pytest.raises(ValueError, match="unknown method 'laplacian'"):
         as_method("laplacian")
     assert_refused(as_method, 3, param="method", message="registry name or a Method", error=TypeError)
+
+
+@pytest.mark.parametrize("method", ["taubin", "guided_normal"])
+def test_a_non_finite_result_is_an_error_eagerly_under_jit_and_under_vmap(bumpy_grid, method):
+    """``throw`` (the default): FloatingPointError eagerly; under jit, and under vmap where one
+    batch element is non-finite, the equinox runtime error with the same words; throw=False
+    returns the NaNs.  Finite inputs give the eager result."""
+    aux = METHODS[method].prepare(bumpy_grid)
+    y = np.asarray(bumpy_grid.vertices)
+    bad = y.copy()
+    bad[3, 0] = np.nan
+    run = lambda x, **kw: denoise(bumpy_grid.with_vertices(x), method, **aux, **kw).vertices  # noqa: E731
+    with pytest.raises(FloatingPointError, match=f"{method} produced non-finite coordinates"):
+        run(jnp.asarray(bad))
+    np.testing.assert_allclose(jax.jit(run)(jnp.asarray(y)), run(jnp.asarray(y)), rtol=1e-12, atol=1e-12)
+    with pytest.raises(Exception, match=f"{method} produced non-finite coordinates"):
+        jax.block_until_ready(jax.jit(run)(jnp.asarray(bad)))
+    with pytest.raises(Exception, match=f"{method} produced non-finite coordinates"):
+        jax.block_until_ready(jax.jit(jax.vmap(run))(jnp.stack([jnp.asarray(y), jnp.asarray(bad)])))
+    quiet = jax.jit(jax.vmap(lambda x: run(x, throw=False)))(jnp.stack([jnp.asarray(y), jnp.asarray(bad)]))
+    assert np.isfinite(quiet[0]).all() and np.isnan(quiet[1]).any()

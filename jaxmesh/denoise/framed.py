@@ -33,7 +33,7 @@ def framed_run(mesh: Mesh, method: str | Method, **params) -> tuple[Mesh, Array]
     m = as_method(method)
     centre, scale = unit_frame(mesh)
     work = to_frame(mesh, centre, scale)
-    out = m(work, **params)
+    out = m(work, throw=False, **params)
     return from_frame(out, centre, scale), diverged(work, out)
 
 

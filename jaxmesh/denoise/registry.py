@@ -16,6 +16,7 @@ import warnings
 from collections.abc import Callable
 from typing import Any
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -140,13 +141,24 @@ class Method:
         statics = tuple(sorted((k, v) for k, v in full.items() if k not in cont and self.params[k].kind != "aux"))
         return cont, statics
 
-    def __call__(self, mesh: Mesh, **params) -> Mesh:
+    def __call__(self, mesh: Mesh, *, throw: bool = True, **params) -> Mesh:
+        """The method on ``mesh`` with ``params`` (defaults from :attr:`params`, each checked).
+        With ``throw``, a non-finite output coordinate is an error: ``FloatingPointError``
+        when called eagerly, an equinox runtime error (``eqx.error_if``) under ``jit`` and
+        ``vmap``; ``throw=False`` returns it for the caller to check (the tuner and the
+        dataset runner do, with :func:`diverged`)."""
         out = self.function(mesh, **self.resolve(**params))
-        if not isinstance(out.vertices, jax.core.Tracer) and not bool(jnp.isfinite(out.vertices).all()):
-            raise FloatingPointError(
-                f"{self.name} produced non-finite coordinates with {params or 'its defaults'} "
-                f"({out.vertices.dtype}); the input was finite, so a parameter is outside the range "
-                "this precision supports (try float64 or a smaller step)")
+        if not throw:
+            return out
+        x = out.vertices
+        tail = (f"({x.dtype}); if the input was finite, a parameter is outside the range this "
+                "precision supports (try float64 or a smaller step)")
+        if isinstance(x, jax.core.Tracer):
+            bad = ~jnp.all(jnp.isfinite(x), axis=(-2, -1))
+            return out.with_vertices(eqx.error_if(x, bad, f"{self.name} produced non-finite coordinates {tail}"))
+        if not bool(jnp.isfinite(x).all()):
+            raise FloatingPointError(f"{self.name} produced non-finite coordinates with "
+                                     f"{params or 'its defaults'} {tail}")
         return out
 
 
@@ -297,7 +309,7 @@ def as_method(method: "str | Method") -> Method:
     return METHODS[method]
 
 
-def denoise(mesh: Mesh, method: "str | Method" = "kernel", *, where=None, **params) -> Mesh:
+def denoise(mesh: Mesh, method: "str | Method" = "kernel", *, where=None, throw: bool = True, **params) -> Mesh:
     """Denoise ``mesh`` with a registered method: ``as_method(method)(mesh, **params)``,
     blended with the input by ``where`` (:mod:`jaxmesh.denoise.selection`).
 
@@ -307,12 +319,14 @@ def denoise(mesh: Mesh, method: "str | Method" = "kernel", *, where=None, **para
             unknown name is a clear error) or a :class:`Method` of your own.
         where: per-vertex weights in [0, 1] or a boolean mask, (V,): x' = y + w (x − y), so
             vertices with w = 0 keep their input positions exactly (default: all move).
+        throw: a non-finite result is an error, under ``jit`` and ``vmap`` too
+            (:meth:`Method.__call__`); False: return it.
         **params: the method's parameters (defaults from the registry); each is
             checked against its domain.
 
     Returns:
         The denoised mesh (same topology)."""
-    out = as_method(method)(mesh, **params)
+    out = as_method(method)(mesh, throw=throw, **params)
     return out if where is None else hold(mesh, out, where)
 
 

@@ -126,7 +126,8 @@ def one_iteration(mesh: Mesh, x, continuous: dict, aux: dict, method: str, stati
         The positions after one iteration, x's shape."""
     from ..denoise import METHODS
 
-    return METHODS[method](mesh.with_vertices(x), **continuous, **dict(statics), iterations=1, **aux).vertices
+    return METHODS[method](mesh.with_vertices(x), throw=False, **continuous, **dict(statics), iterations=1,
+                           **aux).vertices
 
 
 @stored_jit(static_argnames=("method", "statics", "capacity"))

@@ -39,7 +39,7 @@ def _apply(mesh: Mesh, x, continuous: dict, aux: dict, count, method: str, stati
     from ..denoise import METHODS
 
     if count is None:
-        return METHODS[method](mesh.with_vertices(x), **continuous, **dict(statics), **aux).vertices
+        return METHODS[method](mesh.with_vertices(x), throw=False, **continuous, **dict(statics), **aux).vertices
     return jax.lax.fori_loop(0, count, lambda _, x: one_iteration(mesh, x, continuous, aux, method, statics), x)
 
 

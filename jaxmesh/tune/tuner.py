@@ -91,7 +91,7 @@ class _Config:
         return g if g is not None else _GRID_DEFAULT.get(len(self.coords), 3)
 
     def run(self, mesh: Mesh, values: dict, aux: dict) -> Mesh:
-        return self.method(mesh, **dict(self.statics), **values, **aux)
+        return self.method(mesh, throw=False, **dict(self.statics), **values, **aux)
 
     def values(self, u) -> dict:
         return {c.name: c.value(u[..., k]) for k, c in enumerate(self.coords)}
