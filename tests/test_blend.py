@@ -6,7 +6,7 @@ import pytest
 import trimesh
 
 import jaxmesh
-from jaxmesh.tune import Candidate, choose_denoiser
+from jaxmesh.tune import Candidate, Component, Ranked, choose_denoiser
 from jaxmesh.tune.blend import best_blend, best_mixture, blend_weight, mixture_weights, snapshot_rows, tilt_gram
 
 
@@ -117,8 +117,11 @@ def test_choose_denoiser_returns_what_its_components_make():
     noisy = _noisy_box()
     cands = [Candidate("taubin", {"iterations": 10}), Candidate("guided_normal", {})]
     single = choose_denoiser(noisy, candidates=cands, paths=(), blend_draws=0)
-    assert single.components == ((single.table[0][0], single.table[0][1], 1.0),)
-    assert single.method == single.table[0][0]
+    best = single.table[0]
+    assert single.components == (Component(best.method, best.params, 1.0),) and single.method == best.method
+    assert all(isinstance(r, Ranked) for r in single.table)
+    assert [r.risk for r in single.table] == sorted(r.risk for r in single.table)
+    assert single.summary()["candidates"][0] == {"method": best.method, "params": best.params, "risk": best.risk}
     c = choose_denoiser(noisy, candidates=cands, paths=(), blend_draws=3)
     assert sum(w for *_, w in c.components) == pytest.approx(1.0)
     want = sum(w * jaxmesh.denoise.denoise(noisy, m, **p).vertices for m, p, w in c.components)

@@ -99,12 +99,13 @@ def report_auto(args, label, out, mesh, reference, choice, caveats, seconds) -> 
               "for the input (recorrupted estimate, both at 1.12x the noise)")
     if choice.method == "blend":
         best = choice.table[0]
-        print(f"  best single setting: {best[0]} {_settings(best[1])} (estimate {best[2]:.3g}; the blend's, on "
+        print(f"  best single setting: {best.method} {_settings(best.params)} (estimate {best.risk:.3g}; the blend's, on "
               f"fresh draws, {choice.risk:.3g})")
     else:
-        runner = next((r for r in choice.table if r[0] != choice.method), None)
+        runner = next((r for r in choice.table if r.method != choice.method), None)
         if runner is not None:
-            print(f"  best other method: {runner[0]} {runner[1]} (estimate {runner[2]:.3g} vs {choice.risk:.3g})")
+            print(f"  best other method: {runner.method} {runner.params} (estimate {runner.risk:.3g} vs "
+                  f"{choice.risk:.3g})")
     if reference is not None:
         _errors_lines(summary)
     return 0

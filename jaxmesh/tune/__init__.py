@@ -8,6 +8,7 @@ training set.  See :mod:`jaxmesh.tune.tuner` for the search.
 
 from .auto import (CANDIDATES, IMPULSIVE_CANDIDATES, NOISE_MODELS, PATHS, RACE_KEEP, AutoResult, Candidate,
                    SearchPath, choose_denoiser, edge_tilt)
+from .auto_result import Component, Ranked
 from .impulsive import ImpulsiveNoise, estimate_impulsive_noise
 from .patches import Patches, sample_patches
 from .noise_level import (
@@ -35,7 +36,7 @@ __all__ = [
     "estimate_noise", "estimate_tangential_noise", "noise_sigma", "checked_sigma", "SIGMA_RANGE",
     "umbrella_square_row_norms", "NOISE_ESTIMATORS",
     "blind_caveats", "BlindTuningWarning", "LOW_NOISE",
-    "choose_denoiser", "AutoResult", "Candidate", "CANDIDATES", "IMPULSIVE_CANDIDATES", "SearchPath", "PATHS",
+    "choose_denoiser", "AutoResult", "Ranked", "Component", "Candidate", "CANDIDATES", "IMPULSIVE_CANDIDATES", "SearchPath", "PATHS",
     "NOISE_MODELS", "RACE_KEEP", "edge_tilt", "estimate_impulsive_noise", "ImpulsiveNoise", "sample_patches", "Patches",
     "OBJECTIVES", "relative_error", "sure_visual_error", "noisy_visual_error_expectation",
     "Coordinate", "search_space",

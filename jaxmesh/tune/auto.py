@@ -65,7 +65,7 @@ from .heldout import (HELD_OUT_MIN_FACES, feature_faces, held_out_inputs, held_o
 from .impulsive import estimate_impulsive_noise, read_after_repair
 from .noise_level import (BlindTuningWarning, blind_caveats, estimate_noise, estimate_tangential_noise,
                           noise_sigma)
-from .auto_result import AutoResult
+from .auto_result import AutoResult, Component, Ranked
 from .paths import (BILATERAL_FEATURE_MAX_ITERATIONS, BILATERAL_FEATURE_SETTING, BILATERAL_PATH_FIXED,
                     BILATERAL_PATH_MAX_ITERATIONS, BILATERAL_PATH_SIGMAS, PATHS, TAUBIN_LAMS,
                     TAUBIN_MAX_ITERATIONS, TAUBIN_PASS_BANDS, SearchPath, taubin_mu)
@@ -216,14 +216,14 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
     components, risk, noisy_risk, table, estimator = ranked
     clock.append(time.perf_counter())
     y = noisy.vertices
-    auxes = {m: host.aux(m) for m in {c[0] for c in components}}
+    auxes = {c.method: host.aux(c.method) for c in components}
     path_methods = _path_methods(paths)
-    runs = concurrent_map(lambda c: jax.block_until_ready(run_setting(noisy, y, c[0], c[1], auxes[c[0]],
-                                                                      c[0] in path_methods)), components)
-    out = jax.block_until_ready(sum(w * x for (_, _, w), x in zip(components, runs)))
+    runs = concurrent_map(lambda c: jax.block_until_ready(run_setting(noisy, y, c.method, c.params, auxes[c.method],
+                                                                      c.method in path_methods)), components)
+    out = jax.block_until_ready(sum(c.weight * x for c, x in zip(components, runs)))
     clock.append(time.perf_counter())
     seconds = dict(zip(("noise_law", "patches", "ranking", "choice"), np.diff(clock).round(3).tolist()))
-    method, params = (components[0][0], components[0][1]) if len(components) == 1 else ("blend", {})
+    method, params = (components[0].method, components[0].params) if len(components) == 1 else ("blend", {})
     blind_caveats(noisy, law["sigma"], law["estimated"], risk / noisy_risk if noisy_risk > 0 else np.inf)
     return AutoResult(method, params, noisy.with_vertices(out), law["sigma"], law["estimated"], law["tangential"],
                       risk, noisy_risk, bool(risk < noisy_risk), table, components, law["law"], law["fraction"],
@@ -307,7 +307,7 @@ def _rank(host: HostMesh, core, ell, candidates, paths, s_vertex, s_t, draws, bl
         constant, nothing = (1 + 1 / a**2) * trace, (1 + a**2) * trace
 
     table, leaders = race(noisy, candidates, paths, inputs, targets, nu, ell, auxes, constant, race_keep)
-    components, risk = ((table[0][0], table[0][1], 1.0),), table[0][2]
+    components, risk = (Component(table[0].method, table[0].params, 1.0),), table[0].risk
     rows = leaders + snapshot_rows(leaders[len(leaders) - len(paths):], snapshots, leaders)
     if blend_draws and blend_size > 1 and len(rows) > 1:
         fresh = draw(blend_draws, BLEND_SALT)
@@ -315,9 +315,9 @@ def _rank(host: HostMesh, core, ell, candidates, paths, s_vertex, s_t, draws, bl
         gram = tilt_gram(np.stack(_tilts(noisy, *fresh[:2], blended, auxes, nu, ell, _path_methods(paths))))
         mix, total = best_mixture(gram, next(i for i, r in enumerate(rows) if r is table[0]), blend_size)
         if len(mix) > 1:
-            components = tuple((rows[i][0], rows[i][1], w) for i, w in mix)
+            components = tuple(Component(rows[i].method, rows[i].params, w) for i, w in mix)
             risk = total / noisy.num_faces / blend_draws - constant
-    table = [(m, p, r * per_face) for m, p, r in table]
+    table = [Ranked(m, p, r * per_face) for m, p, r in table]
     return components, risk * per_face, nothing * per_face, table, "recorrupted" if held is None else "held_out"
 
 

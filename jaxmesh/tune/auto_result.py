@@ -3,13 +3,30 @@
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from ..mesh import Mesh
 
-__all__ = ["AutoResult"]
+__all__ = ["AutoResult", "Ranked", "Component"]
+
+
+class Ranked(NamedTuple):
+    """One row of the chooser's table: a setting and its estimated ``risk`` (mean squared
+    edge tilt, radians²; ``None`` for a row not estimated on its own, a blend's snapshot)."""
+
+    method: str
+    params: dict
+    risk: float | None
+
+
+class Component(NamedTuple):
+    """One denoiser of the chooser's output and its ``weight`` in the blend (1 when alone)."""
+
+    method: str
+    params: dict
+    weight: float
 
 
 @dataclasses.dataclass(frozen=True)
@@ -19,7 +36,7 @@ class AutoResult:
     * ``method``, ``params``: the winner (the method's other parameters at
       their defaults), or ``"blend"`` and ``{}`` when two are blended, or
       ``"none"`` when the mesh reads as noise-free (σ̂ = 0: ``mesh`` is the input);
-      ``components``: (method, params, weight) of what ``mesh``, the output, is
+      ``components``: the :class:`Component` rows (method, params, weight) of what ``mesh``, the output, is
       made of (one with weight 1, or the blend's two, :mod:`jaxmesh.tune.blend`);
     * ``sigma``: the noise σ used (mesh units; impulsive noise: σ₁, the displaced
       vertices' level) and whether it was ``estimated``; ``tangential_sigma``: the
@@ -28,7 +45,7 @@ class AutoResult:
     * ``risk``: the winner's estimated mean squared edge tilt (radians²) at the
       recorrupted noise level, or, under impulsive noise, on the held-out draws (a blend's on its
       own draws), ``noisy_risk`` doing nothing's, and ``improved = risk < noisy_risk``;
-    * ``table``: every candidate with its estimate, best first;
+    * ``table``: every candidate with its estimate (:class:`Ranked` rows), best first;
     * ``search_vertices``: the vertices of the mesh the candidates were ranked on (the
       whole mesh's, or its patches', :mod:`jaxmesh.tune.patches`);
     * ``estimator``: ``"recorrupted"`` (:mod:`jaxmesh.tune.recorrupt`) or ``"held_out"``
@@ -47,8 +64,8 @@ class AutoResult:
     risk: float
     noisy_risk: float
     improved: bool
-    table: list
-    components: tuple = ()
+    table: list[Ranked]
+    components: tuple[Component, ...] = ()
     noise_law: str = "gaussian"
     fraction: float = 1.0
     search_vertices: int = 0
@@ -69,5 +86,5 @@ class AutoResult:
                 "noisy_rms_normal_error_deg": float(np.degrees(np.sqrt(max(self.noisy_risk, 0.0)))),
                 "improved": self.improved, "search_vertices": self.search_vertices, "seconds": self.seconds,
                 "estimator": self.estimator,
-                "components": [{"method": m, "params": p, "weight": w} for m, p, w in self.components],
-                "candidates": [{"method": m, "params": p, "risk": r} for m, p, r in self.table]}
+                "components": [c._asdict() for c in self.components],
+                "candidates": [r._asdict() for r in self.table]}

@@ -46,6 +46,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from .auto_result import Ranked
+
 __all__ = ["BLEND_DRAWS", "BLEND_SIZE", "SNAPSHOT_FACTORS", "blend_weight", "best_blend", "mixture_weights",
            "best_mixture", "check_snapshots", "snapshot_rows", "tilt_gram"]
 
@@ -175,7 +177,7 @@ def snapshot_rows(path_leaders: list, factors: Sequence[float], have: list) -> l
         have: rows already blended; a (method, params) among them is not repeated.
 
     Returns:
-        (method, params, None) rows, leader by leader, factor by factor."""
+        :class:`~jaxmesh.tune.auto_result.Ranked` rows with risk ``None``, leader by leader, factor by factor."""
     seen = [(r[0], r[1]) for r in have]
     out = []
     for method, params, _ in path_leaders:
@@ -183,7 +185,7 @@ def snapshot_rows(path_leaders: list, factors: Sequence[float], have: list) -> l
             p = {**params, "iterations": max(1, int(round(params["iterations"] * f)))}
             if (method, p) not in seen:
                 seen.append((method, p))
-                out.append((method, p, None))
+                out.append(Ranked(method, p, None))
     return out
 
 

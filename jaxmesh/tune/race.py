@@ -24,6 +24,7 @@ import numpy as np
 from .._exported import stored_jit
 from .._threads import concurrent_map
 from ..mesh import Mesh
+from .auto_result import Ranked
 from .paths import SearchPath, one_iteration, path_risks
 from .recorrupt import edge_tilt
 
@@ -143,7 +144,7 @@ def race(noisy: Mesh, candidates, paths, inputs, targets, nu, ell, auxes: dict, 
         race_keep: the settings of each family run on the draws after the first (None: all).
 
     Returns:
-        (table, leaders): (method, params, estimate) rows, those raced to the end first, best
+        (table, leaders): :class:`~jaxmesh.tune.auto_result.Ranked` rows, those raced to the end first, best
         first, then those dropped after the first draw (estimated on it alone), best first;
         and the best row of each family among the first, families in order."""
     entries = [_Entry(("fixed", c.method), c.method, dict(c.params)) for c in candidates]
@@ -166,14 +167,14 @@ def race(noisy: Mesh, candidates, paths, inputs, targets, nu, ell, auxes: dict, 
         for i, extra in zip(rest, sums_on(rest, slice(first, None))):
             sums[i] = sums[i] + extra
 
-    def row(i: int) -> tuple:
+    def row(i: int) -> Ranked:
         e, t = entries[i], int(np.argmin(sums[i]))
         params = dict(e.params) if e.path is None else {**e.params, **dict(e.path.fixed), "iterations": t + 1}
-        return e.method, params, float(sums[i][t]) / (draws if i in finished else first) - constant
+        return Ranked(e.method, params, float(sums[i][t]) / (draws if i in finished else first) - constant)
 
     rows = {i: row(i) for i in range(len(entries))}
-    leaders = [min((rows[i] for i in finished if entries[i].family == family), key=lambda r: r[2])
+    leaders = [min((rows[i] for i in finished if entries[i].family == family), key=lambda r: r.risk)
                for family in families]
-    table = (sorted((rows[i] for i in finished), key=lambda r: r[2])
-             + sorted((rows[i] for i in rows if i not in finished), key=lambda r: r[2]))
+    table = (sorted((rows[i] for i in finished), key=lambda r: r.risk)
+             + sorted((rows[i] for i in rows if i not in finished), key=lambda r: r.risk))
     return table, leaders
