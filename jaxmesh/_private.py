@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
-from jaxtyping import Array, Float, Int, Shaped
+from jaxtyping import Array, ArrayLike, Float, Int, Shaped
+
+#: a continuous denoiser parameter: a number, or a float array (one value per batch element; traced under jit)
+Scalar = Float[ArrayLike, "..."] | float | int
 
 
 def segment_sum_rows(

@@ -1,5 +1,7 @@
 """Blending two denoisers with a blind weight (jaxmesh.tune.blend)."""
 
+import itertools
+
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -7,7 +9,46 @@ import trimesh
 
 import jaxmesh
 from jaxmesh.tune import Candidate, Component, Ranked, choose_denoiser
-from jaxmesh.tune.blend import best_blend, best_mixture, blend_weight, mixture_weights, snapshot_rows, tilt_gram
+from jaxmesh.tune.blend import best_mixture, mixture_weights, snapshot_rows, tilt_gram
+
+
+def blend_weight(gram: np.ndarray, i: int, j: int) -> tuple[float, float]:
+    """w* and the summed squared tilt ‖T_j + w*(T_i − T_j)‖² of the blend
+    w f_i + (1 − w) f_j (module docstring), from the Gram matrix G_kl = ⟨T_k, T_l⟩
+    of the denoisers' recorrupted edge tilts (summed over the draws).
+
+    Arguments:
+        gram: (K, K) the Gram matrix of the tilts.
+        i: the first denoiser's row.
+        j: the second's.
+
+    Returns:
+        (w*, the blend's summed squared tilt)."""
+    g = np.asarray(gram, np.float64)
+    dd = g[i, i] - 2 * g[i, j] + g[j, j]                   # ‖T_i − T_j‖²
+    de = g[i, j] - g[j, j]                                 # ⟨T_i − T_j, T_j⟩
+    w = float(np.clip(-de / dd, 0.0, 1.0)) if dd > 0 else 0.0
+    return w, float(g[j, j] + 2 * w * de + w * w * dd)
+
+
+def best_blend(gram: np.ndarray, winner: int) -> tuple[tuple[tuple[int, float], ...], float]:
+    """The best of the single ``winner`` and the convex blend of every pair of denoisers, pair by
+    pair in closed form (the reference :func:`best_mixture` with ``size=2`` must agree with).
+
+    Arguments:
+        gram: (K, K) the Gram matrix of the K denoisers' recorrupted edge tilts, on the same draws.
+        winner: the row of the single winner the blends must beat.
+
+    Returns:
+        ((row, weight), ...) of the choice (one row with weight 1.0, or two rows whose
+        weights sum to 1), and its summed squared tilt."""
+    g = np.asarray(gram, np.float64)
+    best: tuple = (((winner, 1.0),), float(g[winner, winner]))
+    for i, j in itertools.combinations(range(len(g)), 2):
+        w, risk = blend_weight(g, i, j)
+        if 0.0 < w < 1.0 and risk < best[1]:
+            best = (((i, w), (j, 1.0 - w)), risk)
+    return best
 
 
 def _gram(rows):

@@ -246,3 +246,30 @@ def test_a_non_finite_result_is_an_error_eagerly_under_jit_and_under_vmap(bumpy_
         jax.block_until_ready(jax.jit(jax.vmap(run))(jnp.stack([jnp.asarray(y), jnp.asarray(bad)])))
     quiet = jax.jit(jax.vmap(lambda x: run(x, throw=False)))(jnp.stack([jnp.asarray(y), jnp.asarray(bad)]))
     assert np.isfinite(quiet[0]).all() and np.isnan(quiet[1]).any()
+
+
+def test_continuous_parameters_are_typed_for_the_type_hook(bumpy_grid):
+    """Every continuous parameter of every registered method is annotated (``Scalar``: a number or a
+    float array), so the suite's beartype hook refuses a string or an integer array; numbers, float
+    arrays and tracers (jit, vmap over a parameter) pass."""
+    import inspect as _inspect
+
+    from conftest import TYPECHECKED
+    from jaxmesh.denoise import taubin_smoothing
+
+    for name, method in METHODS.items():
+        fn = _inspect.unwrap(method.function.func if hasattr(method.function, "func") else method.function)
+        hints = _inspect.signature(fn).parameters
+        for p in method.continuous:
+            assert hints[p].annotation == "Scalar", (name, p, hints[p].annotation)
+    y = bumpy_grid.vertices
+    want = taubin_smoothing(bumpy_grid, 0.5, iterations=2).vertices
+    np.testing.assert_allclose(taubin_smoothing(bumpy_grid, jnp.asarray(0.5), iterations=2).vertices, want)
+    np.testing.assert_allclose(jax.jit(lambda lam: taubin_smoothing(bumpy_grid, lam, iterations=2).vertices)(0.5), want)
+    both = jax.vmap(lambda lam: taubin_smoothing(bumpy_grid.with_vertices(y), lam, iterations=2).vertices)
+    np.testing.assert_allclose(both(jnp.asarray([0.5, 0.5]))[1], want)
+    if not TYPECHECKED:
+        pytest.skip("the annotations are checked only with the suite's jaxtyping hook")
+    for bad in ("0.5", jnp.asarray(1, jnp.int32)):
+        with pytest.raises(TypeError, match="parameter 'lam'"):
+            taubin_smoothing(bumpy_grid, bad, iterations=2)

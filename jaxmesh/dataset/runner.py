@@ -130,24 +130,22 @@ def _collect(inputs, out_dir: Path, suffix: str | None, overwrite: bool, method:
     return items, records
 
 
-def _read_sizes(items: list[tuple[Path, Path]], load: Callable, records: list) -> list[int]:
-    """First pass: (V, F, E) of every input, from its header where it has one
-    (E estimated as V + F, Euler's V − E + F = χ with χ ≈ 0), else by loading
-    it; a file that fails to load becomes a failed record."""
-    ok = []
+def _read_sizes(items: list[tuple[Path, Path]], load: Callable, records: list) -> dict[int, tuple[int, int, int]]:
+    """First pass: {k: (V, F, E)} of every input k that can be read, from its header where it
+    has one (E estimated as V + F, Euler's V − E + F = χ with χ ≈ 0), else by loading it; a file
+    that fails to load becomes a failed record."""
+    sizes = {}
     for k, (src, _) in enumerate(items):
         peek = peek_sizes(src)
         if peek is not None and min(peek) > 0:
-            records[k]["_sizes"] = (peek[0], peek[1], peek[0] + peek[1])
-            ok.append(k)
+            sizes[k] = (peek[0], peek[1], peek[0] + peek[1])
             continue
         try:
             m = load(src)
-            records[k]["_sizes"] = (m.num_vertices, m.num_faces, m.num_edges)
-            ok.append(k)
+            sizes[k] = (m.num_vertices, m.num_faces, m.num_edges)
         except (ValueError, OSError) as err:
             records[k].update(status="failed", error=f"{type(err).__name__}: {err}")
-    return ok
+    return sizes
 
 
 @dataclasses.dataclass
@@ -312,12 +310,13 @@ def denoise_files(inputs: Sequence[str | Path], out_dir: str | Path, method: str
         records = [{**rec, "tuned_on": training} for rec in records]
     out_dir.mkdir(parents=True, exist_ok=True)
     todo = [k for k, rec in enumerate(records) if "status" not in rec]
-    todo = [todo[j] for j in _read_sizes([items[k] for k in todo], load, [records[k] for k in todo])]
+    sizes = {todo[j]: s for j, s in _read_sizes([items[k] for k in todo], load, [records[k] for k in todo]).items()}
+    todo = [k for k in todo if k in sizes]
     for rec in records:
         if "status" in rec:
             log.write(rec)
     batched = method != "auto" and not METHODS[method].aux
-    plan = _plan(records, todo, batch_size, ladder) if batched else [Batch((k,), 0, (0, 0, 0)) for k in todo]
+    plan = _plan(sizes, todo, batch_size, ladder) if batched else [Batch((k,), 0, (0, 0, 0)) for k in todo]
     ahead = batched and not _tuned(params)
     compiled = _precompile(plan, method, params, jnp.result_type(float)) if ahead else {}
     tally, writer, finished = _Tally(), Writer(_save_keeping, overwrite, log), 0
@@ -339,11 +338,11 @@ def denoise_files(inputs: Sequence[str | Path], out_dir: str | Path, method: str
     return _summary(records, tally, start)
 
 
-def _plan(records: list, todo: list[int], batch_size: int | None, ladder: float) -> list[Batch]:
-    """The padded batches of the inputs ``todo`` (indices into ``records``, whose
-    ``_sizes`` the first pass filled)."""
+def _plan(sizes: dict, todo: list[int], batch_size: int | None, ladder: float) -> list[Batch]:
+    """The padded batches of the inputs ``todo`` (indices into the records), from the (V, F, E)
+    ``sizes`` the first pass read."""
     batch_size = default_batch_size() if batch_size is None else batch_size
-    plan = plan_batches([records[k]["_sizes"] for k in todo], batch_size, ladder)
+    plan = plan_batches([sizes[k] for k in todo], batch_size, ladder)
     return [dataclasses.replace(b, items=tuple(todo[i] for i in b.items)) for b in plan]
 
 

@@ -69,7 +69,6 @@ class Report:
             raise ValueError(f"report {path}: cannot be written ({err.strerror or err})") from err
 
     def write(self, record: dict) -> None:
-        record.pop("_sizes", None)
         if self._path is None:
             return
         try:

@@ -20,7 +20,7 @@ from typing import Literal
 
 import jax.numpy as jnp
 
-from .._private import lift, safe_divide, segment_sum_rows
+from .._private import Scalar, lift, safe_divide, segment_sum_rows
 from ..mesh import Mesh
 from ..metrics import cauchy_weight
 from ..operators import gradient_magnitude
@@ -32,7 +32,7 @@ _GRADIENT = {"paper": "paper", "random_walk": "translation_invariant"}
 
 
 def anisotropic_diffusion(
-    mesh: Mesh, dt=0.25, c=1.0, iterations: int = 10,
+    mesh: Mesh, dt: Scalar = 0.25, c: Scalar = 1.0, iterations: int = 10,
     variant: Literal["paper", "random_walk"] = "random_walk",
 ) -> Mesh:
     """``iterations`` steps of Zhang–Ben Hamza diffusion (module docstring).

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from .._private import safe_divide, segment_sum_scalars
+from .._private import Scalar, safe_divide, segment_sum_scalars
 from ..geometry import mean_edge_length, vertex_normals
 from ..mesh import Mesh
 from ._loop import iterate
@@ -32,7 +32,7 @@ from ._loop import iterate
 __all__ = ["bilateral_denoising"]
 
 
-def bilateral_denoising(mesh: Mesh, sigma_c=1.0, sigma_s=1.0, iterations: int = 3) -> Mesh:
+def bilateral_denoising(mesh: Mesh, sigma_c: Scalar = 1.0, sigma_s: Scalar = 1.0, iterations: int = 3) -> Mesh:
     """``iterations`` bilateral steps (module docstring).
 
     Arguments:

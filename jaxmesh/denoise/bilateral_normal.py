@@ -32,7 +32,7 @@ from collections.abc import Callable
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from .._private import lift, safe_normalize
+from .._private import Scalar, lift, safe_normalize
 from ..geometry import face_areas, face_normals
 from ..mesh import Mesh
 from ._loop import check_iterations, iterate
@@ -128,8 +128,8 @@ def joint_bilateral_denoising(
 
 
 def bilateral_normal_filtering(
-    mesh: Mesh, sigma_s=1.0, sigma_r=0.35, normal_iterations: int = 10, vertex_iterations: int = 20,
-    iterations: int = 1, tangential=0.1, graph: FaceGraph | None = None,
+    mesh: Mesh, sigma_s: Scalar = 1.0, sigma_r: Scalar = 0.35, normal_iterations: int = 10,
+    vertex_iterations: int = 20, iterations: int = 1, tangential: Scalar = 0.1, graph: FaceGraph | None = None,
 ) -> Mesh:
     """``iterations`` rounds of (bilateral normal filter ``normal_iterations``
     times, then ``vertex_iterations`` vertex updates with tangential relaxation

@@ -28,7 +28,7 @@ import jax.numpy as jnp
 import lineax as lx
 from jaxtyping import Array, Float
 
-from .._private import lift, safe_divide, segment_sum_rows, segment_sum_scalars
+from .._private import Scalar, lift, safe_divide, segment_sum_rows, segment_sum_scalars
 from ..geometry import vertex_areas
 from ..linalg import sparse_solve
 from ..mesh import Mesh
@@ -123,7 +123,7 @@ def _direct_solve(mesh: Mesh, mass, stiffness, tau, rhs):
                jnp.broadcast_to(stiffness, lead + stiffness.shape[-1:]), jnp.broadcast_to(tau, lead), rhs)
 
 
-def cotangent_flow(mesh: Mesh, dt=0.5, iterations: int = 5, implicit: bool = False,
+def cotangent_flow(mesh: Mesh, dt: Scalar = 0.5, iterations: int = 5, implicit: bool = False,
                    solver: Literal["cg", "cholesky"] = "cg") -> Mesh:
     """Mean-curvature flow with cotangent weights (module docstring): ``implicit=False``
     is the normalised explicit step, ``implicit=True`` backward Euler, each step solved

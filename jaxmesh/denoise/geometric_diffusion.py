@@ -25,7 +25,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from .._private import det_adjugate_3x3, safe_divide, safe_normalize, segment_sum_scalars
+from .._private import Scalar, det_adjugate_3x3, safe_divide, safe_normalize, segment_sum_scalars
 from ..geometry import face_corners, face_normals, hat_gradients, mean_edge_length, vertex_normals
 from ..metrics import cauchy_weight
 from ..mesh import Mesh
@@ -103,7 +103,7 @@ def anisotropic_stiffness(mesh: Mesh, rho) -> Float[Array, "*batch E"]:
                                mesh.num_edges)
 
 
-def geometric_diffusion(mesh: Mesh, dt=0.3, rho=1.0, iterations: int = 3) -> Mesh:
+def geometric_diffusion(mesh: Mesh, dt: Scalar = 0.3, rho: Scalar = 1.0, iterations: int = 3) -> Mesh:
     """``iterations`` semi-implicit steps of Clarenz-style anisotropic diffusion
     (module docstring); ``rho`` in units of 1/ℓ̄, ``dt`` in units of the mean vertex area.
 

@@ -38,7 +38,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float, Int
 
-from .._private import safe_normalize
+from .._private import Scalar, safe_normalize
 from ..mesh import Mesh
 from .bilateral_normal import joint_bilateral_denoising
 from .face_graph import FaceGraph, RingTier
@@ -106,8 +106,8 @@ def guidance_normals(
 
 
 def guided_normal_filtering(
-    mesh: Mesh, sigma_s=1.0, sigma_r=0.35, normal_iterations: int = 20, vertex_iterations: int = 20,
-    iterations: int = 1, tangential=0.1, graph: FaceGraph | None = None,
+    mesh: Mesh, sigma_s: Scalar = 1.0, sigma_r: Scalar = 0.35, normal_iterations: int = 20,
+    vertex_iterations: int = 20, iterations: int = 1, tangential: Scalar = 0.1, graph: FaceGraph | None = None,
 ) -> Mesh:
     """``iterations`` rounds of (guided normal filter ``normal_iterations``
     times, then ``vertex_iterations`` vertex updates with tangential relaxation

@@ -27,7 +27,7 @@ import jax.numpy as jnp
 import lineax as lx
 from jaxtyping import Array, Float
 
-from .._private import safe_divide
+from .._private import Scalar, safe_divide
 from ..geometry import vertex_normals
 from ..mesh import Mesh
 from ..operators import degree, neighbor_sum, umbrella
@@ -137,7 +137,7 @@ def _repair_single(mesh: Mesh, y, alpha, alpha0, iterations: int):
     return iterate(step, x0, iterations)
 
 
-def impulse_repair(mesh: Mesh, alpha=0.3, alpha0=3.0, iterations: int = 5) -> Mesh:
+def impulse_repair(mesh: Mesh, alpha: Scalar = 0.3, alpha0: Scalar = 3.0, iterations: int = 5) -> Mesh:
     """The read-and-fit alternation of the module docstring: a thin-plate fit with
     weight ``alpha0``, then ``iterations`` rounds of reading the displaced vertices
     from the residuals and refitting them with weight ``alpha``.  Batched over

@@ -40,7 +40,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from .._private import lift, safe_divide, segment_sum_rows
+from .._private import Scalar, lift, safe_divide, segment_sum_rows
 from ..mesh import Mesh
 from ..operators import neighbor_sum
 from ._loop import iterate
@@ -225,7 +225,7 @@ def kernel_step(
 
 
 def kernel_diffusion(
-    mesh: Mesh, lam=0.4, iterations: int = 5,
+    mesh: Mesh, lam: Scalar = 0.4, iterations: int = 5,
     variant: Literal["paper", "random_walk"] = "random_walk",
     safeguard: bool = True, rings: VertexRings | None = None,
 ) -> Mesh:

@@ -49,7 +49,7 @@ import jax.numpy as jnp
 import lineax as lx
 from jaxtyping import Array, Float
 
-from .._private import safe_divide, safe_norm, segment_sum_rows, segment_sum_scalars
+from .._private import Scalar, safe_divide, safe_norm, segment_sum_rows, segment_sum_scalars
 from ..geometry import face_areas, face_normals, mean_edge_length
 from ..mesh import Mesh
 from ._loop import check_iterations, iterate
@@ -163,7 +163,8 @@ def _l0_single(mesh: Mesh, graph: FaceGraph, p_star, lam, alpha, iterations: int
     return iterate(step, p_star, iterations, indexed=True)
 
 
-def l0_denoising(mesh: Mesh, lam=10.0, alpha=1.0, iterations: int = 40, graph: FaceGraph | None = None) -> Mesh:
+def l0_denoising(mesh: Mesh, lam: Scalar = 10.0, alpha: Scalar = 1.0, iterations: int = 40,
+                 graph: FaceGraph | None = None) -> Mesh:
     """He & Schaefer 2013 (module docstring): ``iterations`` half-quadratic
     steps with β from 10⁻³ to 10³; ``lam`` and ``alpha`` scale the paper's
     defaults λ = 0.02 ℓ̄² γ̄ and α₀ = 0.1 γ̄.  Batched over leading vertex

@@ -30,7 +30,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from .._private import lift, safe_divide, segment_sum_rows, segment_sum_scalars
+from .._private import Scalar, lift, safe_divide, segment_sum_rows, segment_sum_scalars
 from ..mesh import Mesh
 from ..operators import taubin_pair, umbrella
 from ._loop import iterate
@@ -66,7 +66,7 @@ def smoothing_operator(mesh: Mesh, boundary: str = "free"):
 __all__ = ["laplacian_smoothing", "taubin_smoothing", "hc_smoothing", "hc_step"]
 
 
-def laplacian_smoothing(mesh: Mesh, lam=0.5, iterations: int = 10, boundary: str = "free") -> Mesh:
+def laplacian_smoothing(mesh: Mesh, lam: Scalar = 0.5, iterations: int = 10, boundary: str = "free") -> Mesh:
     """``iterations`` explicit steps of x <- x + λ K x (umbrella flow).
 
     Arguments:
@@ -82,7 +82,8 @@ def laplacian_smoothing(mesh: Mesh, lam=0.5, iterations: int = 10, boundary: str
     return mesh.with_vertices(iterate(lambda x: x + lam * k(x), mesh.vertices, iterations))
 
 
-def taubin_smoothing(mesh: Mesh, lam=0.5, mu=-0.53, iterations: int = 10, boundary: str = "free") -> Mesh:
+def taubin_smoothing(mesh: Mesh, lam: Scalar = 0.5, mu: Scalar = -0.53, iterations: int = 10,
+                     boundary: str = "free") -> Mesh:
     """``iterations`` Taubin pairs: x <- x + λ K x, then x <- x + μ K x (μ < -λ).
 
     Arguments:
@@ -101,7 +102,8 @@ def taubin_smoothing(mesh: Mesh, lam=0.5, mu=-0.53, iterations: int = 10, bounda
     return mesh.with_vertices(iterate(lambda x: taubin_pair(x, k, lam, mu), mesh.vertices, iterations))
 
 
-def hc_smoothing(mesh: Mesh, alpha=0.1, beta=0.5, iterations: int = 10, boundary: str = "free") -> Mesh:
+def hc_smoothing(mesh: Mesh, alpha: Scalar = 0.1, beta: Scalar = 0.5, iterations: int = 10,
+                 boundary: str = "free") -> Mesh:
     """``iterations`` HC-Laplacian steps (Vollmer et al. 1999; module docstring).
 
     Arguments:

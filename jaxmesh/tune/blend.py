@@ -48,7 +48,7 @@ import numpy as np
 
 from .auto_result import Ranked
 
-__all__ = ["BLEND_DRAWS", "BLEND_SIZE", "SNAPSHOT_FACTORS", "blend_weight", "best_blend", "mixture_weights",
+__all__ = ["BLEND_DRAWS", "BLEND_SIZE", "SNAPSHOT_FACTORS", "mixture_weights",
            "best_mixture", "check_snapshots", "snapshot_rows", "tilt_gram"]
 
 #: fresh recorruptions on which the blend weights are fitted and the blend is judged
@@ -59,44 +59,6 @@ BLEND_SALT = 2
 BLEND_SIZE = 2
 #: the iteration counts, as multiples of its leader's, at which each search path is also blended (none by default)
 SNAPSHOT_FACTORS: tuple[float, ...] = ()
-
-
-def blend_weight(gram: np.ndarray, i: int, j: int) -> tuple[float, float]:
-    """w* and the summed squared tilt ‖T_j + w*(T_i − T_j)‖² of the blend
-    w f_i + (1 − w) f_j (module docstring), from the Gram matrix G_kl = ⟨T_k, T_l⟩
-    of the denoisers' recorrupted edge tilts (summed over the draws).
-
-    Arguments:
-        gram: (K, K) the Gram matrix of the tilts.
-        i: the first denoiser's row.
-        j: the second's.
-
-    Returns:
-        (w*, the blend's summed squared tilt)."""
-    g = np.asarray(gram, np.float64)
-    dd = g[i, i] - 2 * g[i, j] + g[j, j]                   # ‖T_i − T_j‖²
-    de = g[i, j] - g[j, j]                                 # ⟨T_i − T_j, T_j⟩
-    w = float(np.clip(-de / dd, 0.0, 1.0)) if dd > 0 else 0.0
-    return w, float(g[j, j] + 2 * w * de + w * w * dd)
-
-
-def best_blend(gram: np.ndarray, winner: int) -> tuple[tuple[tuple[int, float], ...], float]:
-    """The best of the single ``winner`` and the convex blend of every pair of denoisers.
-
-    Arguments:
-        gram: (K, K) the Gram matrix of the K denoisers' recorrupted edge tilts, on the same draws.
-        winner: the row of the single winner the blends must beat.
-
-    Returns:
-        ((row, weight), ...) of the choice (one row with weight 1.0, or two rows whose
-        weights sum to 1), and its summed squared tilt."""
-    g = np.asarray(gram, np.float64)
-    best: tuple = (((winner, 1.0),), float(g[winner, winner]))
-    for i, j in itertools.combinations(range(len(g)), 2):
-        w, risk = blend_weight(g, i, j)
-        if 0.0 < w < 1.0 and risk < best[1]:
-            best = (((i, w), (j, 1.0 - w)), risk)
-    return best
 
 
 def mixture_weights(gram: np.ndarray, rows: Sequence[int]) -> tuple[np.ndarray, float] | None:
@@ -128,7 +90,6 @@ def best_mixture(gram: np.ndarray, winner: int, size: int = BLEND_SIZE) -> tuple
     denoisers (Σw = 1, w > 0): the exact minimum of the quadratic wᵀGw over
     those faces of the simplex, each face by :func:`mixture_weights` (a convex
     quadratic's minimum over the simplex lies in the interior of one face).
-    With ``size=2`` it chooses what :func:`best_blend` chooses (rows heaviest first).
 
     Arguments:
         gram: (K, K) the Gram matrix of the K denoisers' recorrupted edge tilts, on the same draws.

@@ -190,7 +190,8 @@ class TuneResult(eqx.Module):
 
     * ``params``: the tuned continuous parameters (values in the unit-diagonal
       tuning frame; :meth:`apply` runs the method in that frame);
-    * ``fixed``: the method's other parameters as used (iteration count, ...);
+    * ``fixed``: the method's other parameters as used (iteration count, ...), a dict
+      (kept as the hashable ``statics``, sorted (name, value) pairs);
     * ``loss``: the objective at ``params`` relative to the noisy input (E/E_noisy,
       or SURE/E[E_noisy] when blind);
     * ``error``: the visual error of ``mesh`` against the clean mesh, in the mesh's
@@ -207,7 +208,7 @@ class TuneResult(eqx.Module):
     """
 
     method: str = eqx.field(static=True)
-    fixed: dict = eqx.field(static=True)
+    statics: tuple[tuple[str, Any], ...] = eqx.field(static=True)
     denoiser: Method = eqx.field(static=True)
     params: dict
     loss: Array
@@ -221,6 +222,11 @@ class TuneResult(eqx.Module):
     grid_loss: Array
     mesh: Mesh | None
 
+    @property
+    def fixed(self) -> dict:
+        """The method's other parameters as used, by name."""
+        return dict(self.statics)
+
     def apply(self, mesh: Mesh) -> Mesh:
         """Denoise ``mesh`` (any units) with the tuned parameters, in the same
         unit-diagonal frame the tuner used.  For a shared result this is how a
@@ -232,7 +238,7 @@ class TuneResult(eqx.Module):
 
 def _result(cfg: _Config, out: dict, sigma, mesh) -> TuneResult:
     return TuneResult(
-        method=cfg.method.name, fixed=dict(cfg.statics), denoiser=cfg.method, params=out["params"], loss=out["loss"],
+        method=cfg.method.name, statics=tuple(cfg.statics), denoiser=cfg.method, params=out["params"], loss=out["loss"],
         error=out["error"], sigma=sigma, evaluations=out["evaluations"], converged=out["converged"],
         history=out["history"], history_loss=out["history_loss"], grid=out["grid"],
         grid_loss=out["grid_loss"], mesh=mesh,
