@@ -245,15 +245,18 @@ class Mesh(eqx.Module):
     # ------------------------------------------------------------------ counts
     @property
     def num_vertices(self) -> int:
-        return self.degree.shape[0]
+        """V (of each mesh, also when every array is stacked, as in a :class:`~jaxmesh.batch.PaddedBatch`)."""
+        return self.degree.shape[-1]
 
     @property
     def num_faces(self) -> int:
-        return self.faces.shape[0]
+        """F (of each mesh, also when stacked)."""
+        return self.faces.shape[-2]
 
     @property
     def num_edges(self) -> int:
-        return self.edges.shape[0]
+        """E, undirected (of each mesh, also when stacked)."""
+        return self.edges.shape[-2]
 
     @property
     def batch_shape(self) -> tuple[int, ...]:

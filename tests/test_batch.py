@@ -45,7 +45,11 @@ def test_padded_batch_equals_single_calls(three_meshes, name):
 
 
 def test_unpad_restores_every_array(three_meshes):
-    for got, mesh in zip(unpad(pad_batch(three_meshes)), three_meshes):
+    batch = pad_batch(three_meshes)
+    padded = batch.mesh.vertices.shape[1]
+    assert batch.mesh.num_vertices == padded and batch.mesh.num_faces == batch.mesh.faces.shape[1]   # per mesh, not B
+    assert batch.mesh.num_edges == batch.mesh.edges.shape[1] and batch.mesh.batch_shape == (len(three_meshes),)
+    for got, mesh in zip(unpad(batch), three_meshes):
         for field in ("vertices", "faces", "edges", "face_edges", "src", "dst", "edge_of", "degree"):
             np.testing.assert_array_equal(getattr(got, field), getattr(mesh, field))
         assert float(visual_error(mesh, got)) == 0.0
