@@ -101,3 +101,19 @@ def test_one_impulsive_choice_builds_each_host_matrix_once(ball, monkeypatch):
                              blend_draws=0)
     assert result.noise_law == "impulsive"
     assert dict(counts) == {"umbrella_matrix": 1, "_tiers": 1, "_projection_normals": 1}
+
+
+def test_the_estimators_read_a_host_mesh_as_its_mesh(ball):
+    """σ̂ (every estimator), σ̂_t and the impulsive reading are the same from the Mesh and from its
+    HostMesh, and a second reading on the same HostMesh builds nothing again."""
+    from jaxmesh.tune import estimate_impulsive_noise, estimate_noise, estimate_tangential_noise
+
+    noisy = jaxmesh.add_noise(ball, 0.01, 2)
+    host = HostMesh(noisy)
+    for method in ("min", "flat", "umbrella", "quadric"):
+        assert estimate_noise(host, method) == estimate_noise(noisy, method)
+    assert estimate_tangential_noise(host) == estimate_tangential_noise(noisy)
+    assert estimate_impulsive_noise(host).fraction == estimate_impulsive_noise(noisy).fraction
+    kept = dict(host.__dict__)
+    estimate_noise(host)
+    assert all(host.__dict__[k] is v for k, v in kept.items() if k != "_memo")
