@@ -102,10 +102,10 @@ class HostMesh:
             Keyword arguments (empty for methods that need none)."""
         from .denoise import as_method
 
-        params = as_method(method).params
-        return {k: self.memo(f"aux:{params[k].build.__module__}.{params[k].build.__qualname__}",
-                             functools.partial(params[k].build, self.mesh))
-                for k in as_method(method).aux}
+        m = as_method(method)
+        builders = {k: m.params[k].build for k in m.aux}
+        return {k: self.memo(f"aux:{b.__module__}.{b.__qualname__}", functools.partial(b, self.mesh))
+                for k, b in builders.items()}
 
 
 def as_host(mesh: Mesh | HostMesh) -> HostMesh:

@@ -227,7 +227,7 @@ def test_as_method_refuses_what_is_not_a_name_or_a_method():
     assert_refused(as_method, 3, param="method", message="registry name or a Method", error=TypeError)
 
 
-@pytest.mark.parametrize("method", ["taubin", "guided_normal"])
+@pytest.mark.parametrize("method", ["taubin", pytest.param("guided_normal", marks=pytest.mark.slow)])   # 3 s
 def test_a_non_finite_result_is_an_error_eagerly_under_jit_and_under_vmap(bumpy_grid, method):
     """``throw`` (the default): FloatingPointError eagerly; under jit, and under vmap where one
     batch element is non-finite, the equinox runtime error with the same words; throw=False
