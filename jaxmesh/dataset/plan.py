@@ -51,23 +51,22 @@ def default_batch_size() -> int:
     return 1 if jax.default_backend() == "cpu" else 16
 
 
-def rung(n: int, ratio: float = LADDER_RATIO, start: int = LADDER_START) -> int:
-    """The smallest ladder size ≥ n: ⌈start · ratio^k⌉ for the least k ≥ 0.
+def rung(n: int, ratio: float = LADDER_RATIO) -> int:
+    """The smallest ladder size ≥ n: ⌈LADDER_START · ratio^k⌉ for the least k ≥ 0.
 
     Arguments:
         n: a size (≥ 1).
         ratio: the ladder's step (finite, > 1).
-        start: the ladder's first size (≥ 1).
 
     Returns:
         The ladder size."""
     if not (ratio > 1 and math.isfinite(ratio)):
         raise ValueError(f"the ladder ratio must be a finite number > 1, got {ratio!r}")
-    if n <= start:
-        return start
-    k = math.ceil(math.log(n / start, ratio) - 1e-12)
-    size = math.ceil(start * ratio ** k)
-    return size if size >= n else math.ceil(start * ratio ** (k + 1))
+    if n <= LADDER_START:
+        return LADDER_START
+    k = math.ceil(math.log(n / LADDER_START, ratio) - 1e-12)
+    size = math.ceil(LADDER_START * ratio ** k)
+    return size if size >= n else math.ceil(LADDER_START * ratio ** (k + 1))
 
 
 @dataclasses.dataclass(frozen=True)

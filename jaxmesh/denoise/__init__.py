@@ -10,8 +10,7 @@ differentiable with respect to its continuous parameters and the positions.
 from ._loop import progress
 from .anisotropic import anisotropic_diffusion
 from .bilateral_normal import bilateral_normal_filtering, joint_bilateral_normals, spatial_weights
-from .face_graph import (PADDED_TIER_FRACTIONS, RING_TIERS, FaceGraph, RingTier, centroid_spacing, face_centroids,
-                         face_graph, pad_face_graph, ring_tiers)
+from .face_graph import RING_TIERS, FaceGraph, RingTier, centroid_spacing, face_centroids, face_graph, ring_tiers
 from .guided import guidance_normals, guided_normal_filtering, patch_inconsistency
 from .impulse_repair import impulse_repair, mixture_posterior, scale_mixture
 from .l0 import edge_operator, l0_denoising, mean_dihedral_angle
@@ -44,8 +43,7 @@ __all__ = [
     "implicit_diffusion_step", "normal_filtering", "filter_normals", "face_rings", "FaceRings",
     "ring_sum", "bilateral_denoising", "geometric_diffusion", "anisotropic_stiffness",
     "face_curvatures",
-    "FaceGraph", "RingTier", "RING_TIERS", "PADDED_TIER_FRACTIONS", "face_graph", "ring_tiers", "pad_face_graph",
-    "face_centroids", "centroid_spacing",
+    "FaceGraph", "RingTier", "RING_TIERS", "face_graph", "ring_tiers", "face_centroids", "centroid_spacing",
     "vertex_update",
     "bilateral_normal_filtering", "joint_bilateral_normals", "spatial_weights",
     "guided_normal_filtering", "guidance_normals", "patch_inconsistency",

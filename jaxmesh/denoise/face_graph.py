@@ -30,7 +30,6 @@ the edge arrays.
 from __future__ import annotations
 
 import itertools
-from collections.abc import Callable
 from typing import NamedTuple
 
 import jax
@@ -42,8 +41,7 @@ from jaxtyping import Array, Bool, Float, Int
 from .._private import lift, safe_divide, safe_norm
 from ..mesh import Mesh, to_device
 
-__all__ = ["FaceGraph", "RingTier", "RING_TIERS", "PADDED_TIER_FRACTIONS", "face_graph", "ring_tiers",
-           "pad_face_graph", "face_centroids", "centroid_spacing"]
+__all__ = ["FaceGraph", "RingTier", "RING_TIERS", "face_graph", "ring_tiers", "face_centroids", "centroid_spacing"]
 
 #: the most tiers the rings are split into (module docstring)
 RING_TIERS = 3
@@ -202,75 +200,6 @@ def face_graph(mesh: Mesh) -> FaceGraph:
     tiers = tuple(RingTier(as32(f), as32(r), to_device(np.ascontiguousarray(m))) for f, r, m in groups)
     return FaceGraph(as32(ring), to_device(ring_mask), as32(patch_edges), to_device(patch_edge_mask),
                      as32(edge_faces), as32(edge_apex), to_device(np.asarray(interior)), tiers, as32(order))
-
-
-def _pad_to(a: np.ndarray, rows: int, cols: int | None, fill_rows, fill_cols) -> np.ndarray:
-    """``a`` grown to ``rows`` rows (new rows ``fill_rows``) and, for a 2-D array, ``cols``
-    columns (new columns ``fill_cols``, broadcast against the rows)."""
-    if cols is not None and cols > a.shape[1]:
-        a = np.concatenate([a, np.broadcast_to(fill_cols, (a.shape[0], cols - a.shape[1]))], axis=1)
-    extra = rows - a.shape[0]
-    return np.concatenate([a, np.broadcast_to(fill_rows, (extra,) + a.shape[1:])]) if extra > 0 else a
-
-
-#: the padded graph's tiers: these fractions of the faces, the smallest rings first (:func:`pad_face_graph`)
-PADDED_TIER_FRACTIONS = (0.625, 0.25, 0.125)
-
-
-def pad_face_graph(graph: FaceGraph, faces: int, edges: int, size: Callable[[int], int], *, ring_least: int = 1,
-                   patch_least: int = 1, tier_least: tuple[int, ...] = (1, 1, 1)) -> FaceGraph:
-    """The face graph of a mesh padded to ``faces`` faces and ``edges`` edges (as
-    :func:`jaxmesh.batch.pad_batch` pads it), its widths rounded up by ``size``, so that
-    meshes of similar sizes share one shape and one compiled program.
-
-    The padding is inert: a padded face's ring is itself alone, padded ring and patch-edge
-    columns are masked (the ring's repeat its face, as :func:`face_graph`'s padding does),
-    and padded edges are masked.  Built from the real mesh's graph: a graph built on the
-    padded mesh would join every padded face to every other through their shared vertex.
-    The tiers are made anew, with lengths that depend on ``faces`` alone: the faces sorted
-    by ring size and cut at ``PADDED_TIER_FRACTIONS``, each tier as wide as ``size`` of
-    its widest ring (near the least pairs of :func:`ring_tiers` on the meshes measured).
-
-    Arguments:
-        graph: the real mesh's graph (:func:`face_graph`).
-        faces: the padded face count, at least the real one.
-        edges: the padded edge count, at least the real one.
-        size: the padded width of n entries (n ≤ size(n)).
-        ring_least: the least width of the rings.
-        patch_least: the least width of the patch edges.
-        tier_least: the least width of each tier.
-
-    Returns:
-        The padded :class:`FaceGraph`."""
-    ring, ring_mask = np.asarray(graph.ring), np.asarray(graph.ring_mask)
-    nf, ne = ring.shape[0], graph.edge_mask.shape[0]
-    if faces < nf or edges < ne:
-        raise ValueError(f"pad_face_graph: ({faces}, {edges}) is smaller than the graph's ({nf}, {ne})")
-    ids = np.arange(faces)
-    ring = _pad_to(ring, faces, size(max(ring.shape[1], ring_least)), ids[nf:, None], ring[:, :1])
-    ring_mask = _pad_to(ring_mask, faces, ring.shape[1], np.arange(ring.shape[1]) == 0, False)
-    patch = np.asarray(graph.patch_edges)
-    fill = patch.flat[0] if patch.size else 0
-    patch_edges = _pad_to(patch, faces, size(max(patch.shape[1], patch_least)), fill, patch[:, :1])
-    patch_mask = _pad_to(np.asarray(graph.patch_edge_mask), faces, patch_edges.shape[1], False, False)
-    edge_faces = _pad_to(np.asarray(graph.edge_faces), edges, None, 0, None)
-    edge_apex = _pad_to(np.asarray(graph.edge_apex), edges, None, np.asarray(graph.edge_apex)[0], None)
-    edge_mask = _pad_to(np.asarray(graph.edge_mask), edges, None, False, None)
-    counts = ring_mask.sum(axis=1)
-    by_size = np.argsort(counts, kind="stable")
-    cuts = np.minimum(np.ceil(np.cumsum(PADDED_TIER_FRACTIONS) * faces).astype(np.int64), faces)
-    tiers = []
-    for members, least in zip(np.split(by_size, cuts[:-1]), tier_least):
-        if members.size:
-            k = min(size(max(int(counts[members].max()), least)), ring.shape[1])
-            tiers.append((members, ring[members, :k], ring_mask[members, :k]))
-    order = np.empty(faces, np.int64)
-    order[by_size] = np.arange(faces)
-    as32 = lambda a: to_device(np.ascontiguousarray(a, dtype=np.int32))  # noqa: E731
-    return FaceGraph(as32(ring), to_device(ring_mask), as32(patch_edges), to_device(patch_mask), as32(edge_faces),
-                     as32(edge_apex), to_device(edge_mask),
-                     tuple(RingTier(as32(f), as32(r), to_device(np.ascontiguousarray(m))) for f, r, m in tiers),
-                     as32(order))
 
 
 def face_centroids(mesh: Mesh) -> Float[Array, "*batch F 3"]:

@@ -36,9 +36,7 @@ choice does not beat it, ``improved`` is False and the caller must say so.
 **Large meshes.**  On a mesh of more than ``PATCH_FACTOR × search_vertices``
 vertices the candidates are ranked on patches of it, a stratified sample of the
 surface (:mod:`jaxmesh.tune.patches`), and only the choice runs on the whole
-mesh; the noise law is read on the whole mesh.  With ``search_ladder`` (dataset runs), a whole
-mesh ranked on is padded to a ladder of sizes (:mod:`jaxmesh.tune.ladder`), so that meshes of
-similar sizes share the search's compiled programs; the ranking is the unpadded one's.
+mesh; the noise law is read on the whole mesh.
 Measurements and the alternatives tried: the denoising guide.
 """
 
@@ -65,7 +63,6 @@ from .blend import (BLEND_DRAWS, BLEND_SALT, BLEND_SIZE, SNAPSHOT_FACTORS, best_
 from .heldout import (HELD_OUT_MIN_FACES, feature_faces, held_out_inputs, held_out_split, measured_faces,
                       stratum_weights)
 from .impulsive import estimate_impulsive_noise, read_after_repair
-from .ladder import SearchMesh, pad_search
 from .noise_level import (BlindTuningWarning, blind_caveats, estimate_noise, estimate_tangential_noise,
                           noise_sigma)
 from .auto_result import AutoResult, Component, Ranked
@@ -115,7 +112,7 @@ def _pilot_normals(pilot: Mesh):
 
 def _check(noisy: Mesh, candidates: Sequence[Candidate], paths: Sequence[SearchPath], draws, a, noise_model,
            blend_draws=0, blend_size=2, snapshots=(),
-           search_vertices=None, antithetic=False, race_keep=None, search_ladder=None) -> None:
+           search_vertices=None, antithetic=False, race_keep=None) -> None:
     from ..denoise import METHODS
 
     if not isinstance(noisy, Mesh):
@@ -152,9 +149,6 @@ def _check(noisy: Mesh, candidates: Sequence[Candidate], paths: Sequence[SearchP
         raise ValueError(f"antithetic must be True or False, got {antithetic!r}")
     if race_keep is not None and (isinstance(race_keep, bool) or not isinstance(race_keep, int) or race_keep < 1):
         raise ValueError(f"race_keep must be None or an int >= 1, got {race_keep!r}")
-    if search_ladder is not None and (isinstance(search_ladder, bool) or not isinstance(search_ladder, (int, float))
-                                      or not 1 < search_ladder < np.inf):
-        raise ValueError(f"search_ladder must be None or a finite number > 1, got {search_ladder!r}")
 
 
 def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequence[Candidate] = CANDIDATES,
@@ -163,7 +157,7 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
                     blend_draws: int = BLEND_DRAWS, blend_size: int = BLEND_SIZE,
                     snapshots: Sequence[float] = SNAPSHOT_FACTORS, a: float = 0.5, key=0,
                     search_vertices: int | None = SEARCH_VERTICES, antithetic: bool = False,
-                    race_keep: int | None = RACE_KEEP, search_ladder: float | None = None) -> AutoResult:
+                    race_keep: int | None = RACE_KEEP) -> AutoResult:
     """Pick the candidate with the least recorrupted normal-error estimate
     (module docstring) and denoise ``noisy`` with it, blind.
 
@@ -195,16 +189,12 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
         race_keep: after the first draw, how many settings of each family (each method among
             the fixed candidates, each search path) go on to the other draws (module docstring,
             *Racing*); ``None``: every setting on every draw.
-        search_ladder: rank on the whole mesh padded to this ladder of sizes (> 1,
-            :mod:`jaxmesh.tune.ladder`), so that meshes of similar sizes share the search's compiled
-            programs, at the cost of running it padded (the dataset runner passes ``SEARCH_LADDER``);
-            ``None``: unpadded.  Rankings on patches and held-out rankings are never padded.
 
     Returns:
         An :class:`AutoResult`: the method and parameters chosen (or the blend), the
         denoised mesh, the table of estimated risks."""
     _check(noisy, list(candidates) + list(impulsive_candidates), paths, draws, a, noise_model, blend_draws,
-           blend_size, snapshots, search_vertices, antithetic, race_keep, search_ladder)
+           blend_size, snapshots, search_vertices, antithetic, race_keep)
     clock = [time.perf_counter()]
     host = HostMesh(noisy)
     law = _noise_law(host, sigma, noise_model)
@@ -221,13 +211,16 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
         s_vertex = s_vertex if np.ndim(s_vertex) == 0 else np.asarray(s_vertex)[patches.vertices]
     clock.append(time.perf_counter())
     impulsive = (law["fraction"], law["sigma"]) if law["law"] == "impulsive" else None
-    ratio = search_ladder if impulsive is None and core is None else None
-    ranked_on = pad_search(search, ratio)
-    ranked = _rank(ranked_on, core, mean_edge_length(noisy), candidates, paths, s_vertex, law["tangential"], draws,
+    ranked = _rank(search, core, mean_edge_length(noisy), candidates, paths, s_vertex, law["tangential"], draws,
                    blend_draws, blend_size, snapshots, a, key, antithetic, race_keep, impulsive)
     components, risk, noisy_risk, table, estimator = ranked
     clock.append(time.perf_counter())
-    out = _run_choice(ranked_on if search is host else pad_search(host, ratio), components, _path_methods(paths))
+    y = noisy.vertices
+    auxes = {c.method: host.aux(c.method) for c in components}
+    path_methods = _path_methods(paths)
+    runs = concurrent_map(lambda c: jax.block_until_ready(run_setting(noisy, y, c.method, c.params, auxes[c.method],
+                                                                      c.method in path_methods)), components)
+    out = jax.block_until_ready(sum(c.weight * x for c, x in zip(components, runs)))
     clock.append(time.perf_counter())
     seconds = dict(zip(("noise_law", "patches", "ranking", "choice"), np.diff(clock).round(3).tolist()))
     method, params = (components[0].method, components[0].params) if len(components) == 1 else ("blend", {})
@@ -235,20 +228,6 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
     return AutoResult(method, params, noisy.with_vertices(out), law["sigma"], law["estimated"], law["tangential"],
                       risk, noisy_risk, bool(risk < noisy_risk), table, components, law["law"], law["fraction"],
                       search.mesh.num_vertices, seconds, estimator)
-
-
-def _run_choice(whole: SearchMesh, components: Sequence[Component], counted: frozenset):
-    """Σ_c w_c f_c(y) on the whole mesh (padded like the search mesh: one compile serves a rung),
-    the components side by side; the real vertices' positions, (V, 3)."""
-    y = whole.mesh.vertices
-    auxes = {c.method: whole.aux(c.method) for c in components}
-    runs = concurrent_map(lambda c: jax.block_until_ready(run_setting(whole.mesh, y, c.method, c.params,
-                                                                      auxes[c.method], c.method in counted)),
-                          components)
-    out = jax.block_until_ready(sum(c.weight * x for c, x in zip(components, runs)))
-    if whole.mesh is whole.host.mesh:
-        return out
-    return jnp.asarray(np.asarray(out)[:whole.num_vertices])     # cut on the host: no program per size
 
 
 def _unchanged(noisy: Mesh, seconds: float) -> AutoResult:
@@ -297,20 +276,19 @@ def _held_out(noisy: Mesh, pilot: Mesh, nu_pilot, n, ell, core, auxes: dict, imp
     return nu, draw, int(measured.sum())
 
 
-def _rank(search: SearchMesh, core, ell, candidates, paths, s_vertex, s_t, draws, blend_draws, blend_size, snapshots,
-          a, key, antithetic=False, race_keep=None, impulsive=None) -> tuple:
-    """The search of :func:`choose_denoiser` on ``search``'s mesh (the whole mesh or its patches, where only
-    the faces of ``core`` count; padded or not, :mod:`jaxmesh.tune.ladder`): (components, risk, doing
-    nothing's risk, table), risks per counted face.  ``impulsive``: (p̂, σ̂₁) to rank by the held-out
-    estimate where it measures enough faces (on an unpadded search mesh)."""
-    noisy = search.mesh
+def _rank(host: HostMesh, core, ell, candidates, paths, s_vertex, s_t, draws, blend_draws, blend_size, snapshots, a,
+          key, antithetic=False, race_keep=None, impulsive=None) -> tuple:
+    """The search of :func:`choose_denoiser` on ``host``'s mesh (the whole mesh or its patches, where only
+    the faces of ``core`` count): (components, risk, doing nothing's risk, table), risks per counted face.
+    ``impulsive``: (p̂, σ̂₁) to rank by the held-out estimate where it measures enough faces."""
+    noisy = host.mesh
     y = noisy.vertices
     methods = ({c.method for c in candidates} | {"guided_normal"} | _path_methods(paths)
                | ({"impulse_repair"} if impulsive else set()))
-    auxes = {m: search.aux(m) for m in methods}
+    auxes = {m: host.aux(m) for m in methods}
     pilot = noisy.with_vertices(run_setting(noisy, y, "guided_normal", {}, auxes["guided_normal"]))
     nu, n = _pilot_normals(pilot)
-    counted = search.counted(core)
+    counted = np.ones(noisy.num_faces, bool) if core is None else np.asarray(core, bool)
     held = _held_out(noisy, pilot, nu, n, ell, counted, auxes, impulsive, key) if impulsive else None
     if held is not None:
         nu, draw, count = held
@@ -318,13 +296,12 @@ def _rank(search: SearchMesh, core, ell, candidates, paths, s_vertex, s_t, draws
         constant, per_face = 0.0, noisy.num_faces / count
         nothing = float(jnp.sum(edge_tilt(noisy, nu, ell, inputs - targets) ** 2)) / draws / noisy.num_faces
     else:
-        if not counted.all():    # faces outside the cores, and padded faces, tilt by nothing: ν_f = 0
+        if core is not None:    # faces outside the cores tilt by nothing: ν_f = 0
             nu = nu * jnp.asarray(counted, nu.dtype)[:, None]
         per_face = noisy.num_faces / max(int(counted.sum()), 1)
 
         def draw(count: int, salt: int = 0):
-            zs = recorruptions(noisy, nu, n, ell, s_vertex, s_t, count, key, salt=salt, antithetic=antithetic,
-                               size=search.num_vertices)
+            zs = recorruptions(noisy, nu, n, ell, s_vertex, s_t, count, key, salt=salt, antithetic=antithetic)
             return y[None] + a * zs[0], y[None] - zs[0] / a, zs[1]
         inputs, targets, trace = draw(draws)
         constant, nothing = (1 + 1 / a**2) * trace, (1 + a**2) * trace

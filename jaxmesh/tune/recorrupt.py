@@ -70,7 +70,7 @@ def edge_tilt(mesh: Mesh, nu: Float[Array, "F 3"], ell, u: Float[Array, "*batch 
 
 
 def recorruptions(noisy: Mesh, nu, n, ell, s, s_t: float, draws: int, key, salt: int = 0,
-                  antithetic: bool = False, size: int | None = None):
+                  antithetic: bool = False):
     """``draws`` fields z ~ N(0, Σ_i = s_i² n_i n_iᵀ + s_t² (I − n_i n_iᵀ)) and the trace
     tr(AᵀAΣ)/F of the module docstring (each edge difference sees its two vertices).
     With ``antithetic`` the fields are ⌈draws/2⌉ independent ones, each followed by its
@@ -87,27 +87,14 @@ def recorruptions(noisy: Mesh, nu, n, ell, s, s_t: float, draws: int, key, salt:
         key: the key (or int seed) of the draws.
         salt: nonzero draws an independent set.
         antithetic: draw in (z, −z) pairs.
-        size: the real vertices, the first ``size`` (default: all); the others are a padded
-            mesh's (:mod:`jaxmesh.tune.ladder`): they draw 0, and the real ones draw what they
-            would on the unpadded mesh.
 
     Returns:
         (z (draws, V, 3), tr(AᵀAΣ)/F)."""
     k = library_key(key, RECORRUPTION_STREAM)
     k = jax.random.fold_in(k, salt) if salt else k
-    nv = noisy.num_vertices
-    size = nv if size is None else size
-    s_real = np.broadcast_to(np.asarray(s, dtype=np.float64), (size,))
-    s_t = jnp.asarray(s_t, noisy.dtype)
-    if size == nv:
-        s_v = jnp.asarray(s_real, noisy.dtype)
-        zs = _fields(k, s_v, n, s_t, draws, antithetic)
-    else:
-        s_v = jnp.asarray(np.concatenate([s_real, np.zeros(nv - size)]), noisy.dtype)
-        real = _fields(k, jnp.asarray(s_real, noisy.dtype), jnp.asarray(np.asarray(n)[:size]), s_t, draws, antithetic)
-        zs = jnp.asarray(np.concatenate([np.asarray(real), np.zeros((draws, nv - size, 3), np.asarray(real).dtype)],
-                                        axis=1))
-    return zs, float(_trace(noisy, nu, n, s_v, s_t, ell))
+    s_v = jnp.asarray(np.broadcast_to(np.asarray(s, dtype=np.float64), (noisy.num_vertices,)), noisy.dtype)
+    zs = _fields(k, s_v, n, jnp.asarray(s_t, noisy.dtype), draws, antithetic)
+    return zs, float(_trace(noisy, nu, n, s_v, jnp.asarray(s_t, noisy.dtype), ell))
 
 
 @stored_jit(static_argnames=("draws", "antithetic"))
