@@ -2,8 +2,8 @@
 
     .venv/bin/python benchmarks/bench_hash.py [--meshes bunny igea] [--repeat 3]
 
-For each mesh: median wall time of ``jaxmesh.hash.mesh_hash`` (the thesis's hash:
-8 METIS parts, r = 16), of ``jaxmesh.hash.robust_hash``, and of the peer
+For each mesh: median wall time of ``jaxmesh.hashing.mesh_hash`` (the thesis's hash:
+8 METIS parts, r = 16), of ``jaxmesh.hashing.robust_hash``, and of the peer
 ``trimesh.comparison.identifier_simple`` (trimesh's rotation-invariant shape
 identifier, the nearest thing a peer library ships), with the ratio
 peer / jaxmesh (> 1: jaxmesh is faster).  The thesis hash is also split into
@@ -28,7 +28,7 @@ import trimesh  # noqa: E402
 import trimesh.comparison  # noqa: E402
 
 import jaxmesh  # noqa: E402
-from jaxmesh.hash import (euclidean_mst_length, laplace_beltrami_eigenvalues, mesh_hash,  # noqa: E402
+from jaxmesh.hashing import (euclidean_mst_length, laplace_beltrami_eigenvalues, mesh_hash,  # noqa: E402
                           metis_partition, robust_hash, submesh)
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "meshes"

@@ -8,7 +8,7 @@ import jax
 import jaxmesh
 from _common import out_dir
 from jaxmesh.dataset import denoise_files
-from jaxmesh.hash.attacks import simplify
+from jaxmesh.hashing.attacks import simplify
 
 out = out_dir(__doc__)
 src = out / "scans"

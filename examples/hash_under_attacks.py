@@ -3,8 +3,8 @@ robust hash still recognises it while it tells a different model apart."""
 
 import jaxmesh
 from _common import out_dir
-from jaxmesh.hash import THRESHOLDS, robust_hash, similarity
-from jaxmesh.hash.attacks import ALL_ATTACKS
+from jaxmesh.hashing import THRESHOLDS, robust_hash, similarity
+from jaxmesh.hashing.attacks import ALL_ATTACKS
 
 out_dir(__doc__)
 spot = jaxmesh.data.load_sample("spot", dtype="float64")

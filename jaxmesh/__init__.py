@@ -29,7 +29,7 @@ _NAMES = {
 
 #: the public modules and subpackages, attributes of the package
 _MODULES = ("attributes", "batch", "compiler", "compress", "data", "dataset", "denoise", "geodesics", "geometry",
-            "graph", "hash", "host", "intrinsic", "io", "linalg", "mesh", "metrics", "noise", "operators", "render", "sparse",
+            "graph", "hashing", "host", "intrinsic", "io", "linalg", "mesh", "metrics", "noise", "operators", "render", "sparse",
             "spectral", "stats", "topology", "transforms", "tune", "vf", "view")
 
 __all__ = [*_NAMES, *_MODULES]
@@ -61,7 +61,7 @@ if TYPE_CHECKING:   # what static tools see (explicit re-exports); at run time e
     from . import geodesics as geodesics
     from . import geometry as geometry
     from . import graph as graph
-    from . import hash as hash
+    from . import hashing as hashing
     from . import host as host
     from . import intrinsic as intrinsic
     from . import io as io

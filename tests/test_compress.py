@@ -159,7 +159,7 @@ def _dense_eigh(mesh, kind):
 @pytest.fixture(scope="module")
 def patch(spot):
     """A 900-vertex piece of spot: irregular connectivity with a boundary."""
-    from jaxmesh.hash.partition import submesh
+    from jaxmesh.hashing.partition import submesh
 
     v, f, _ = submesh(np.asarray(spot.vertices), np.asarray(spot.faces), np.arange(spot.num_vertices) < 900)
     return jaxmesh.Mesh.from_arrays(v, f)

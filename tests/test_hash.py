@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 
 import jaxmesh
-from jaxmesh.hash import attacks
-from jaxmesh.hash import (THRESHOLDS, cosine_similarity, euclidean_mst, euclidean_mst_length,
+from jaxmesh.hashing import attacks
+from jaxmesh.hashing import (THRESHOLDS, cosine_similarity, euclidean_mst, euclidean_mst_length,
                           graph_mst_length, laplace_beltrami_eigenvalues,
                           mesh_hash, metis_partition, robust_hash, similarity, submesh,
                           tsallis_entropy, verdict)
-from jaxmesh.hash.robust import affine_normalize
+from jaxmesh.hashing.robust import affine_normalize
 from conftest import grid_arrays
 
 # ---------------------------------------------------------------- MST
@@ -151,7 +151,7 @@ def test_thesis_hash_exact_invariances(spot, spot_hash):
 
 def test_thesis_hash_deterministic_across_processes(spot_hash):
     code = ("import jax; jax.config.update('jax_enable_x64', True); import json, jaxmesh; "
-            "from jaxmesh.hash import mesh_hash; "
+            "from jaxmesh.hashing import mesh_hash; "
             "print(json.dumps(mesh_hash(jaxmesh.data.load_sample('spot', dtype='float64')).to_dict()))")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
@@ -182,7 +182,7 @@ def test_similarity_eq4_by_hand():
 
 
 def test_overflowing_mu_is_compared_in_log_space():
-    from jaxmesh.hash import MeshHash
+    from jaxmesh.hashing import MeshHash
 
     with np.errstate(over="ignore"):
         big = MeshHash("thesis", np.exp([800.0, 799.0]), np.array([800.0, 799.0]))
@@ -333,7 +333,7 @@ def test_host_laplace_beltrami_uses_the_one_degenerate_face_rule():
     """A sliver of height 1e-17: the hash spectra's host matrix S = D^½ L_c D^½ (D = diag(3/η))
     is similar to the JAX-defined L = D L_c, S = D^-½ L D^½ (before: entries up to 6e34 from
     its own zero-area rule)."""
-    from jaxmesh.hash.spectrum import symmetric_laplace_beltrami
+    from jaxmesh.hashing.spectrum import symmetric_laplace_beltrami
     from jaxmesh.sparse import laplace_beltrami_matrix
 
     v = np.array([[0, 0, 0], [1, 0, 0], [0.5, 1e-17, 0], [0.5, 0.5, 1]], float)

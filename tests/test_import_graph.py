@@ -118,7 +118,7 @@ def test_every_name_in_all_exists(module):
 
 
 def test_subpackages_are_attributes_and_typed():
-    for name in ("batch", "compress", "dataset", "denoise", "hash", "stats", "tune"):
+    for name in ("batch", "compress", "dataset", "denoise", "hashing", "stats", "tune"):
         assert name in jaxmesh.__all__ and getattr(jaxmesh, name).__name__ == f"jaxmesh.{name}"
     assert (ROOT / "py.typed").is_file()
 

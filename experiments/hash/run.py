@@ -5,7 +5,7 @@ and the robust hash, with the separation margin, on the shared meshes.
 
 Writes experiments/results/hash/{README.md, results.json, partition.png}.
 
-* Robustness: ρ(h(M), h(attack(M))) for every attack of ``jaxmesh.hash.attacks``
+* Robustness: ρ(h(M), h(attack(M))) for every attack of ``jaxmesh.hashing.attacks``
   (the thesis's table 4.1 and three more), attack seed ``--seed``.
 * Uniqueness: ρ(h(A), h(B)) over every pair of different meshes.
 * Margin = smallest robustness ρ − largest cross-model ρ, over the table 4.1
@@ -35,9 +35,9 @@ import jaxmesh  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from shared_meshes import MESHES, load, timed  # noqa: E402
-from jaxmesh.hash import attacks  # noqa: E402
-from jaxmesh.hash import HASHES, THRESHOLDS, cosine_similarity, mesh_hash, similarity  # noqa: E402
-from jaxmesh.hash.robust import HALF_DISTANCE  # noqa: E402
+from jaxmesh.hashing import attacks  # noqa: E402
+from jaxmesh.hashing import HASHES, THRESHOLDS, cosine_similarity, mesh_hash, similarity  # noqa: E402
+from jaxmesh.hashing.robust import HALF_DISTANCE  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 OUT = ROOT / "experiments" / "results" / "hash"
@@ -119,7 +119,7 @@ def main() -> None:
     summary: dict = {"margin": {}, "worst": {}}
     lines = ["# Mesh hashing: robustness (table 4.1) and uniqueness (table 4.2)", "",
              f"Made by `experiments/hash/run.py` (attack seed {args.seed}); rerun it to reproduce.", "",
-             "Attacks (`jaxmesh.hash.attacks`; the thesis does not give its scaling factor, smoothing step",
+             "Attacks (`jaxmesh.hashing.attacks`; the thesis does not give its scaling factor, smoothing step",
              "or noise unit, so these are the choices):", ""]
     for att_name, attack in attacks.ALL_ATTACKS.items():
         tag = "table 4.1" if att_name in attacks.TABLE_4_1 else "extra"

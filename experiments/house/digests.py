@@ -50,7 +50,7 @@ def main() -> None:
     args = ap.parse_args()
     from jaxmesh.compress import compress
     from jaxmesh.denoise import METHODS, denoise_in_unit_frame
-    from jaxmesh.hash import mesh_hash, robust_hash
+    from jaxmesh.hashing import mesh_hash, robust_hash
     from jaxmesh.stats import mesh_statistics
     from jaxmesh.tune import choose_denoiser
 

@@ -7,7 +7,7 @@ import json
 
 import numpy as np
 
-from ..hash import THRESHOLDS, mesh_hash, robust_hash, similarity, verdict
+from ..hashing import THRESHOLDS, mesh_hash, robust_hash, similarity, verdict
 from ..io import load
 from ._common import CLIError, check_view, mesh_arguments, mesh_source, view_argument, write_view
 

@@ -7,7 +7,7 @@ import pytest
 
 import jaxmesh
 from jaxmesh.cli import main
-from jaxmesh.hash import attacks, robust_hash
+from jaxmesh.hashing import attacks, robust_hash
 
 
 def test_cli_hash_and_compare(capsys, tmp_path, spot):

@@ -14,8 +14,8 @@ __all__ = ["MeshHash", "cosine_similarity", "scaled_vector"]
 class MeshHash:
     """A mesh's hash and what it was made of.
 
-    * ``kind``: ``"thesis"`` (:func:`jaxmesh.hash.mesh_hash`) or ``"robust"``
-      (:func:`jaxmesh.hash.robust_hash`);
+    * ``kind``: ``"thesis"`` (:func:`jaxmesh.hashing.mesh_hash`) or ``"robust"``
+      (:func:`jaxmesh.hashing.robust_hash`);
     * ``vector``: the hash h (float64); for ``"thesis"`` h = (μ_1, …, μ_s) in the
       canonical part order (which may hold ``inf`` when a μ_k overflows float64;
       ``log_vector`` = log μ_k is always finite and ρ is computed from it);

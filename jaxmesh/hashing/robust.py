@@ -115,7 +115,7 @@ def robust_hash(mesh: Mesh, *, samples: int = 40000, degree: int = 6, shells: in
 
     Deterministic (fixed ``seed``); invariant to translation, uniform scale, rotation
     and vertex order up to the sampling of the surface, and robust to the thesis's
-    attacks.  Compare two with :func:`jaxmesh.hash.similarity`.
+    attacks.  Compare two with :func:`jaxmesh.hashing.similarity`.
 
     Arguments:
         mesh: the mesh (single).

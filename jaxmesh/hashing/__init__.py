@@ -9,7 +9,7 @@
 
 Building blocks: :mod:`.partition` (METIS via pymetis), :mod:`.spanning_tree`
 (exact Euclidean MST, Tsallis estimate), :mod:`.spectrum` (Laplace–Beltrami
-eigenvalues through scipy).  The attacks are in :mod:`jaxmesh.hash.attacks`.
+eigenvalues through scipy).  The attacks are in :mod:`jaxmesh.hashing.attacks`.
 """
 
 from __future__ import annotations

@@ -20,7 +20,7 @@ def similarity(h1, h2) -> float:
 
     * two ``"thesis"`` hashes (or two plain vectors): the thesis's normalised
       correlation ρ (eq.4), computed from log μ so that it never overflows;
-    * two ``"robust"`` hashes: :func:`jaxmesh.hash.robust.robust_similarity`.
+    * two ``"robust"`` hashes: :func:`jaxmesh.hashing.robust.robust_similarity`.
 
     Raises ``ValueError`` for hashes of different kinds or parameters.
 
