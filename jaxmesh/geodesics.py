@@ -141,13 +141,12 @@ def _components(mesh: Mesh) -> Int[Array, " V"]:
     covers the same surface).  All 0 where the mesh is traced: right for a connected mesh."""
     if isinstance(mesh.vertices, jax.core.Tracer) or isinstance(mesh.faces, jax.core.Tracer):
         return jnp.zeros(mesh.num_vertices, jnp.int32)
-    from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
+    from .graph import adjacency_from_faces
+
     f = np.asarray(mesh.faces)[np.asarray(face_areas(mesh)) > 0]
-    e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
-    graph = coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), (mesh.num_vertices,) * 2)
-    labels = connected_components(graph, directed=False)[1]
+    labels = connected_components(adjacency_from_faces(f, mesh.num_vertices), directed=False)[1]
     first = np.unique(labels, return_index=True)[1]
     return jnp.asarray(first[labels], jnp.int32)
 

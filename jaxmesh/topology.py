@@ -13,12 +13,13 @@ from scipy.sparse.csgraph import connected_components as _cc
 
 from ._exported import stored_jit
 from .mesh import Mesh, zero_area_faces
+from .sparse import adjacency_matrix
 
 __all__ = [
     "euler_characteristic",
     "edge_face_counts",
     "boundary_edges",
-    "boundary_loops",
+    "boundary_loop_count",
     "non_manifold_edges",
     "non_manifold_vertices",
     "connected_components",
@@ -74,8 +75,10 @@ def non_manifold_edges(mesh: Mesh) -> np.ndarray:
     return np.asarray(mesh.edges)[edge_face_counts(mesh) > 2]
 
 
-def boundary_loops(mesh: Mesh) -> int:
+def boundary_loop_count(mesh: Mesh) -> int:
     """Number of connected chains of boundary edges (holes, for a manifold mesh).
+    Loops that touch at a vertex count as one chain here; :func:`jaxmesh.vf.boundary_loops`
+    walks them apart and returns each loop's vertices.
 
     Arguments:
         mesh: a single mesh.
@@ -99,10 +102,7 @@ def connected_components(mesh: Mesh) -> tuple[int, np.ndarray]:
 
     Returns:
         (count, labels (V,))."""
-    m = mesh.num_vertices
-    src, dst = np.asarray(mesh.src), np.asarray(mesh.dst)
-    g = sp.coo_matrix((np.ones(len(src)), (src, dst)), shape=(m, m))
-    n, labels = _cc(g, directed=False)
+    n, labels = _cc(adjacency_matrix(mesh), directed=False)
     return int(n), labels
 
 
@@ -167,7 +167,7 @@ def genus(mesh: Mesh) -> int | None:
         or not is_consistently_oriented(mesh)
     ):
         return None
-    twice_g = 2 - euler_characteristic(mesh) - boundary_loops(mesh)
+    twice_g = 2 - euler_characteristic(mesh) - boundary_loop_count(mesh)
     return twice_g // 2 if twice_g >= 0 and twice_g % 2 == 0 else None
 
 
@@ -242,7 +242,7 @@ def mesh_info(mesh: Mesh) -> dict:
         "faces": mesh.num_faces,
         "edges": mesh.num_edges,
         "boundary_edges": int((counts == 1).sum()),
-        "boundary_loops": boundary_loops(mesh),
+        "boundary_loops": boundary_loop_count(mesh),
         "components": n_comp,
         "euler_characteristic": euler_characteristic(mesh),
         "genus": genus(mesh),

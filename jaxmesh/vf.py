@@ -40,7 +40,8 @@ import scipy.sparse as sp
 
 from . import geometry, sparse
 from ._private import x64_context
-from .mesh import Mesh, build_topology
+from .graph import adjacency_from_faces
+from .mesh import Mesh
 
 __all__ = ["to_mesh", "cotmatrix", "massmatrix", "adjacency_matrix", "per_face_normals",
            "per_vertex_normals", "doublearea", "boundary_loop", "boundary_loops"]
@@ -133,10 +134,7 @@ def adjacency_matrix(F, num_vertices: int | None = None) -> sp.csr_matrix:
     Returns:
         (n, n) int CSR matrix, symmetric, zero diagonal."""
     f, n = _faces(F, num_vertices)
-    edges = build_topology(f, n)["edges"] if len(f) else np.zeros((0, 2), np.int64)
-    i = np.concatenate([edges[:, 0], edges[:, 1]])
-    j = np.concatenate([edges[:, 1], edges[:, 0]])
-    return sp.csr_matrix((np.ones(len(i), np.int64), (i, j)), shape=(n, n))
+    return adjacency_from_faces(f, n).astype(np.int64)
 
 
 def per_face_normals(V, F) -> np.ndarray:

@@ -15,7 +15,7 @@ def test_hand_cases(tetra, octa, grid, triangle):
     assert T.euler_characteristic(octa) == 2
     assert T.euler_characteristic(triangle) == 1 and len(T.boundary_edges(triangle)) == 3
     # 5 x 4 vertices grid (4 x 3 cells): boundary is 2 * (4 + 3) edges, one loop, a disk
-    assert len(T.boundary_edges(grid)) == 14 and T.boundary_loops(grid) == 1
+    assert len(T.boundary_edges(grid)) == 14 and T.boundary_loop_count(grid) == 1
     assert T.genus(grid) == 0 and T.connected_components(grid)[0] == 1
     assert T.is_consistently_oriented(tetra)
 
