@@ -86,10 +86,10 @@ def test_search_finds_a_minimum_next_to_a_divergence_cliff():
     out = jax.jit(lambda: search(lambda u: loss_of(coord.value(u[..., 0])), cfg, jnp.float64, 100))()
     fine = np.linspace(0.3, 0.8, 50001)
     best = fine[np.argmin(np.asarray(loss_of(fine)))]
-    grid = np.asarray(out["grid_loss"])
+    grid = np.asarray(out.grid_loss)
     assert grid.max() / grid.min() > 1e6          # the cliff is in the grid
-    assert abs(float(coord.value(out["u"][0])) - best) < 2e-3
-    assert bool(out["converged"])
+    assert abs(float(coord.value(out.u[0])) - best) < 2e-3
+    assert bool(out.converged)
 
 
 def test_two_parameters_and_the_iteration_count(spot_pair):

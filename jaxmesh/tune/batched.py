@@ -60,10 +60,9 @@ def _shared_search(noisy: Mesh, clean: Mesh | None, sigma, key, cfg: _Config):  
             noisy_n, clean_n, sigma_n, keys)
         return jnp.mean(per, axis=0)
 
-    out = search(loss, cfg, noisy.vertices.dtype, noisy.vertices.shape[0] * noisy.vertices.shape[1])
-    out["loss"] = loss(out["u"][None])[0]
-    out["error"] = out["loss"]
-    return _named(cfg, out, final=1)
+    found = search(loss, cfg, noisy.vertices.dtype, noisy.vertices.shape[0] * noisy.vertices.shape[1])
+    final = loss(found.u[None])[0]
+    return _named(cfg, found, final, final, None, 1)
 
 
 def _as_batch(meshes):
@@ -155,12 +154,13 @@ def tune_batch(noisy, clean=None, method="kernel", *, iterations: int | None = N
     out = _tune_many(stacked, clean_stacked, s, key, aux, cfg=cfg, noisy_shared=shared,
                      clean_shared=clean_shared)
 
-    outputs = unpack(out["vertices"])
+    outputs = unpack(out.vertices)
     if clean is not None:   # per unpadded mesh: padding must not count in the 1/2m
-        out["error"] = jnp.stack([visual_error(c, o) for c, o in zip(unpack(clean_stacked.vertices), outputs)])
+        out = out._replace(error=jnp.stack([visual_error(c, o)
+                                            for c, o in zip(unpack(clean_stacked.vertices), outputs)]))
     else:
-        out["error"] = out["loss"] * jnp.stack(
-            [noisy_visual_error_expectation(m, s[i]) for i, m in enumerate(singles)])
+        out = out._replace(error=out.loss * jnp.stack(
+            [noisy_visual_error_expectation(m, s[i]) for i, m in enumerate(singles)]))
     return _result(cfg, out, s, None), outputs
 
 

@@ -6,11 +6,30 @@ to (g,) relative losses; ``cfg`` carries ``coords``, ``grid``, ``max_steps``,
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import jax
 import jax.numpy as jnp
 import optimistix as optx
+from jaxtyping import Array
 
-__all__ = ["search", "grid_axis", "parabola_start"]
+__all__ = ["Found", "search", "grid_axis", "parabola_start"]
+
+
+class Found(NamedTuple):
+    """What :func:`search` found, in the search coordinates u (p of them): the
+    minimiser ``u`` (p,), whether BFGS ``converged``, its ``steps``, the coarse
+    grid's points ``grid_u`` (G, p) and losses ``grid_loss`` (G,), and the BFGS
+    iterates ``history_u`` (max_steps, p) with their losses ``history_loss`` (NaN
+    past the last step)."""
+
+    u: Array
+    converged: Array
+    steps: Array
+    grid_u: Array
+    grid_loss: Array
+    history_u: Array
+    history_loss: Array
 
 
 def grid_axis(n: int, dtype):
@@ -77,7 +96,7 @@ _GRID_BATCH_VERTICES = 150_000
 
 
 def search(loss, cfg, dtype, num_vertices: int):
-    """Steps 2–4 of the module docstring.  Returns a dict of arrays.
+    """Steps 2–4 of the module docstring.
 
     Arguments:
         loss: maps (g, p) coordinates to (g,) relative losses.
@@ -86,7 +105,7 @@ def search(loss, cfg, dtype, num_vertices: int):
         num_vertices: V, which sizes the grid's batches.
 
     Returns:
-        A dict: ``u``, ``converged``, ``steps``, the grid and the history."""
+        The :class:`Found` minimiser, grid and history."""
     p, n = len(cfg.coords), cfg.grid
     t, u_axis = grid_axis(n, dtype)
     mesh_u = jnp.stack(jnp.meshgrid(*([u_axis] * p), indexing="ij"), axis=-1).reshape(-1, p)
@@ -124,8 +143,5 @@ def search(loss, cfg, dtype, num_vertices: int):
     y, state, k, hist_y, hist_f = jax.lax.while_loop(cond, body, (y0, state, 0, hist_y, hist_f))
     done, result = solver.terminate(fn, y, None, options, state, frozenset())
     u = u0 + scale * y
-    return {
-        "u": u, "converged": done & (result == optx.RESULTS.successful), "steps": k,
-        "grid_u": mesh_u, "grid_loss": grid_loss,
-        "history_u": u0[None] + scale[None] * hist_y, "history_loss": hist_f,
-    }
+    return Found(u, done & (result == optx.RESULTS.successful), k, mesh_u, grid_loss,
+                 u0[None] + scale[None] * hist_y, hist_f)

@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, NamedTuple
 
 import equinox as eqx
 import jax
@@ -57,7 +57,7 @@ from .objectives import (
 )
 from .noise_level import blind_caveats, checked_sigma, noise_sigma
 from .options import TuneOptions
-from .search import search
+from .search import Found, search
 from .space import Coordinate, search_space
 
 __all__ = ["TuneResult", "TuneOptions", "tune", "tune_lambda"]
@@ -154,32 +154,47 @@ def _loss_function(cfg: _Config, noisy: Mesh, clean: Mesh | None, sigma, key, au
 # --------------------------------------------------------------------------- the search
 
 
-def _tune_one(noisy: Mesh, clean: Mesh | None, sigma, key, cfg: _Config, aux: dict):
+class _Tuned(NamedTuple):
+    """One tuning run's arrays, as its compiled program returns them: the parameter
+    values by name (``params``, and those of the ``grid`` and the BFGS ``history``),
+    the losses there, whether BFGS converged, the loss ``evaluations``, the final
+    ``loss`` and ``error``, and the denoised ``vertices`` (None for a shared setting)."""
+
+    params: dict
+    grid: dict
+    grid_loss: Array
+    history: dict
+    history_loss: Array
+    converged: Array
+    evaluations: Array
+    loss: Array
+    error: Array
+    vertices: Array | None
+
+
+def _tune_one(noisy: Mesh, clean: Mesh | None, sigma, key, cfg: _Config, aux: dict) -> _Tuned:
     """Tune on one mesh (any units); jittable and vmappable over meshes."""
     centre, scale = unit_frame(noisy)
     noisy_n = to_frame(noisy, centre, scale)
     clean_n = None if clean is None else to_frame(clean, centre, scale)
     sigma_n = None if sigma is None else sigma / scale
     loss = _loss_function(cfg, noisy_n, clean_n, sigma_n, key, aux)
-    out = search(loss, cfg, noisy.dtype, noisy.num_vertices)
-    result_n = cfg.run(noisy_n, cfg.values(out["u"]), aux)
-    out["vertices"] = result_n.vertices * scale[..., None, None] + centre[..., None, :]
+    found = search(loss, cfg, noisy.dtype, noisy.num_vertices)
+    result_n = cfg.run(noisy_n, cfg.values(found.u), aux)
+    vertices = result_n.vertices * scale[..., None, None] + centre[..., None, :]
     if clean is None:   # SURE needs its own pass (a JVP); in mesh units: relative SURE x E[E(noisy)]
-        out["loss"] = loss(out["u"][None])[0]
-        out["error"] = out["loss"] * noisy_visual_error_expectation(noisy, sigma)
-    else:               # from the final run itself
-        out["loss"] = relative_error(cfg.objective, clean_n, noisy_n, result_n)
-        out["error"] = visual_error(clean, out["vertices"])
-    return _named(cfg, out, final=2 if clean is None else 1)
+        final = loss(found.u[None])[0]
+        return _named(cfg, found, final, final * noisy_visual_error_expectation(noisy, sigma), vertices, 2)
+    final = relative_error(cfg.objective, clean_n, noisy_n, result_n)     # from the final run itself
+    return _named(cfg, found, final, visual_error(clean, vertices), vertices, 1)
 
 
-def _named(cfg: _Config, out: dict, final: int) -> dict:
-    """Coordinates u -> parameter values by name (inside jit: no eager dispatch);
-    evaluations = grid points + optimiser steps + ``final`` closing evaluations."""
-    for key in ("u", "grid_u", "history_u"):
-        out[key[:-2] or "params"] = cfg.values(out.pop(key))
-    out["evaluations"] = out["grid_loss"].shape[-1] + out["steps"] + final
-    return out
+def _named(cfg: _Config, found: Found, loss, error, vertices, closing: int) -> _Tuned:
+    """The ``_Tuned`` of a search: coordinates u -> parameter values by name (inside jit: no
+    eager dispatch); evaluations = grid points + optimiser steps + ``closing`` evaluations."""
+    return _Tuned(cfg.values(found.u), cfg.values(found.grid_u), found.grid_loss, cfg.values(found.history_u),
+                 found.history_loss, found.converged, found.grid_loss.shape[-1] + found.steps + closing, loss, error,
+                 vertices)
 
 
 # --------------------------------------------------------------------------- results
@@ -236,12 +251,11 @@ class TuneResult(eqx.Module):
         return denoise_in_unit_frame(mesh, self.denoiser, **self.fixed, **self.params)
 
 
-def _result(cfg: _Config, out: dict, sigma, mesh) -> TuneResult:
+def _result(cfg: _Config, out: _Tuned, sigma, mesh) -> TuneResult:
     return TuneResult(
-        method=cfg.method.name, statics=tuple(cfg.statics), denoiser=cfg.method, params=out["params"], loss=out["loss"],
-        error=out["error"], sigma=sigma, evaluations=out["evaluations"], converged=out["converged"],
-        history=out["history"], history_loss=out["history_loss"], grid=out["grid"],
-        grid_loss=out["grid_loss"], mesh=mesh,
+        method=cfg.method.name, statics=tuple(cfg.statics), denoiser=cfg.method, params=out.params, loss=out.loss,
+        error=out.error, sigma=sigma, evaluations=out.evaluations, converged=out.converged,
+        history=out.history, history_loss=out.history_loss, grid=out.grid, grid_loss=out.grid_loss, mesh=mesh,
     )
 
 
@@ -311,7 +325,7 @@ def tune(noisy: Mesh, clean: Mesh | None = None, method: "str | Method" = "kerne
     best = None
     for cfg in configs:
         out = _tune_jit(noisy, clean, s, k, cfg=cfg, aux=aux)
-        res = _result(cfg, out, s, noisy.with_vertices(out["vertices"]))
+        res = _result(cfg, out, s, noisy.with_vertices(out.vertices))
         if best is None or float(res.loss) < float(best.loss):
             best = res
     if blind:
