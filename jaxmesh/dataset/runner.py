@@ -28,7 +28,7 @@ import functools
 import time
 from pathlib import Path
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -43,6 +43,15 @@ from .plan import (LADDER_RATIO, LADDER_START, MESH_SUFFIXES, Batch, default_bat
                    plan_batches, rung)
 
 __all__ = ["DatasetSummary", "denoise_files"]
+
+
+class _Outcome(NamedTuple):
+    """One input's fate: the denoised ``mesh`` (with the ``params`` it was tuned to, if
+    tuned), or the ``error`` that stopped it (unreadable, invalid, diverged)."""
+
+    mesh: Mesh | None = None
+    params: dict | None = None
+    error: BaseException | None = None
 
 @dataclasses.dataclass(frozen=True)
 class DatasetSummary:
@@ -181,8 +190,8 @@ def _pad_group(batch: Batch, meshes: list, ladder: float) -> _Padded | None:
 
 def _run_batch(batch: Batch, meshes: list, prepared: _Padded | None, method: str, params: dict, tally: _Tally,
                compiled: dict) -> dict:
-    """{item: denoised mesh, (mesh, tuned parameters) or the exception} for one padded batch."""
-    results = {k: mesh for k, mesh in zip(batch.items, meshes) if not isinstance(mesh, Mesh)}
+    """{item: its :class:`_Outcome`} for one padded batch (the reader gives a mesh or the exception)."""
+    results = {k: _Outcome(error=mesh) for k, mesh in zip(batch.items, meshes) if not isinstance(mesh, Mesh)}
     if prepared is None:
         return results
     good, shape, pb = prepared.good, prepared.shape, prepared.padded
@@ -195,8 +204,8 @@ def _run_batch(batch: Batch, meshes: list, prepared: _Padded | None, method: str
         for j, (k, mesh) in enumerate(good):
             values = _tuned_values(params, {n: res.params[n][j] for n in names})
             ok = bool(np.all(np.isfinite(np.asarray(outs[j].vertices))))
-            results[k] = ((mesh.with_vertices(outs[j].vertices), values) if ok else
-                          FloatingPointError(f"{method} tuned to a non-finite result ({values})"))
+            results[k] = (_Outcome(mesh.with_vertices(outs[j].vertices), values) if ok else
+                          _Outcome(error=FloatingPointError(f"{method} tuned to a non-finite result ({values})")))
     else:
         from ..denoise import METHODS
 
@@ -205,8 +214,8 @@ def _run_batch(batch: Batch, meshes: list, prepared: _Padded | None, method: str
         x, bad = ahead.result()(pb.mesh, cont) if ahead is not None else _run_padded(pb.mesh, cont, method, statics)
         x, bad = np.asarray(x), np.asarray(bad)     # cut on the host: only the positions come back
         for j, (k, mesh) in enumerate(good):
-            results[k] = (FloatingPointError(f"{method} diverged on this mesh with {params}") if bad[j]
-                          else mesh.with_vertices(to_device(x[j, :mesh.num_vertices])))
+            results[k] = (_Outcome(error=FloatingPointError(f"{method} diverged on this mesh with {params}")) if bad[j]
+                          else _Outcome(mesh.with_vertices(to_device(x[j, :mesh.num_vertices]))))
     tally.real += sum(mesh.num_vertices for _, mesh in good)
     tally.padded += shape[0] * pb.mesh.vertices.shape[0]
     return results
@@ -230,30 +239,30 @@ def _precompile(plan: list[Batch], method: str, params: dict, dtype, workers: in
     return jobs
 
 
-def _run_single(mesh, method: str, params: dict, record: dict):
-    """One mesh by itself (auto, or a method with auxiliary inputs): the result or the exception."""
+def _run_single(mesh, method: str, params: dict, record: dict) -> _Outcome:
+    """One mesh by itself (auto, or a method with auxiliary inputs; the reader gives a mesh or the exception)."""
     from ..denoise import denoise_in_unit_frame
 
     if not isinstance(mesh, Mesh):
-        return mesh
+        return _Outcome(error=mesh)
     try:
         names = _tuned(params) if method != "auto" else []
         if names:
             from ..tune import tune
 
             r = tune(mesh, None, method, names=names, **{k: params[k] for k in params if k not in names})
-            return r.mesh, _tuned_values(params, {n: r.params[n] for n in names})
+            return _Outcome(r.mesh, _tuned_values(params, {n: r.params[n] for n in names}))
         if method != "auto":
-            return denoise_in_unit_frame(mesh, method, **params)
+            return _Outcome(denoise_in_unit_frame(mesh, method, **params))
         from ..tune import choose_denoiser
 
         choice = choose_denoiser(mesh)
         record.update(chosen=choice.method, params=choice.params)
         if choice.method == "blend":
             record["components"] = [{"method": m, "params": p, "weight": w} for m, p, w in choice.components]
-        return choice.mesh
+        return _Outcome(choice.mesh)
     except (ValueError, FloatingPointError) as err:
-        return err
+        return _Outcome(error=err)
 
 
 def denoise_files(inputs: Sequence[str | Path], out_dir: str | Path, method: str = "taubin",
@@ -346,18 +355,19 @@ def _plan(sizes: dict, todo: list[int], batch_size: int | None, ladder: float) -
     return [dataclasses.replace(b, items=tuple(todo[i] for i in b.items)) for b in plan]
 
 
-def _settle(rec: dict, result, noisy, item: tuple, params: dict, seconds: float, writer: Writer, log: Report,
-            folder: Path | None) -> None:
+def _settle(rec: dict, outcome: _Outcome, noisy, item: tuple, params: dict, seconds: float, writer: Writer,
+            log: Report, folder: Path | None) -> None:
     """Record one input's fate: a result goes to the writer (scored against its
     reference there, when there is a reference folder), a failure to the report."""
     from ..io import load
 
-    if isinstance(result, tuple):
-        result, rec["params"] = result
-    if not isinstance(result, Mesh):
-        rec.update(status="failed", error=f"{type(result).__name__}: {result}")
+    if outcome.error is not None:
+        rec.update(status="failed", error=f"{type(outcome.error).__name__}: {outcome.error}")
         log.write(rec)
         return
+    result = outcome.mesh
+    if outcome.params is not None:
+        rec["params"] = outcome.params
     rec.update(status="ok", vertices=result.num_vertices, faces=result.num_faces, seconds=seconds)
     rec.setdefault("params", params)
     check = None if folder is None else functools.partial(supervision.score, rec, noisy, result, item[0], folder, load)
