@@ -17,9 +17,9 @@ CPU, is 1.18× faster with it (``benchmarks/bench_dataset.py``, variant
 
 XLA reads ``XLA_FLAGS`` once, when JAX's first computation starts its backend,
 and aborts on a flag it does not know: :func:`prefer_fast_cpu_compiles` adds the
-flag only before that point, only for the jaxlib versions it was measured with,
-and never over a setting of the user's.  The ``jaxmesh`` command calls it first
-thing; ``JAXMESH_XLA_DEFAULTS=1`` keeps XLA's own defaults.
+flag only for the jaxlib versions it was measured with, and never over a setting
+of the user's; it must run before that point to take effect.  The ``jaxmesh``
+command calls it first thing; ``JAXMESH_XLA_DEFAULTS=1`` keeps XLA's own defaults.
 
 **The persistent compilation cache.**  Most of a short command's time is XLA
 compiling programs that then run for milliseconds, and a new process compiles
@@ -52,7 +52,6 @@ from __future__ import annotations
 import gc
 import math
 import os
-import sys
 import warnings
 from pathlib import Path
 
@@ -79,11 +78,6 @@ MAP_LIMIT = 30_000
 CACHE_OFF = ("off", "0", "none", "false", "no", "")
 
 
-def _backend_started() -> bool:
-    xla_bridge = sys.modules.get("jax._src.xla_bridge")
-    return bool(getattr(xla_bridge, "_backends", None))
-
-
 def prefer_fast_cpu_compiles() -> bool:
     """Add :data:`CPU_COMPILE_FLAG` to ``XLA_FLAGS`` when it can still take effect
     and is known to help (module docstring); call before JAX's first computation.
@@ -92,12 +86,11 @@ def prefer_fast_cpu_compiles() -> bool:
 
     Returns:
         True if the flag was added; False if it was left out: ``JAXMESH_XLA_DEFAULTS=1``,
-        ``XLA_FLAGS`` already names the setting, the backend has started, or this
-        jaxlib version was not measured."""
+        ``XLA_FLAGS`` already names the setting, or this jaxlib version was not measured.
+        (JAX has no public query for whether its backend has started: called after, the
+        flag is set all the same, and only processes started later see it.)"""
     flags = os.environ.get("XLA_FLAGS", "")
     if os.environ.get("JAXMESH_XLA_DEFAULTS") == "1" or "xla_cpu_use_fusion_emitters" in flags:
-        return False
-    if _backend_started():
         return False
     try:
         from importlib.metadata import version

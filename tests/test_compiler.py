@@ -1,23 +1,18 @@
-"""jaxmesh.compiler: the CPU compile flag is added only where it can take effect,
-never over the user's own setting, and XLA accepts it."""
+"""jaxmesh.compiler: the CPU compile flag is added only for the jaxlib it was measured
+with, never over the user's own setting, and XLA accepts it."""
 
 import os
 import subprocess
 import sys
 
-import jax.numpy as jnp
-
 from jaxmesh import compiler
 
 
-def test_left_alone_when_the_user_decides_or_the_backend_runs(monkeypatch):
-    jnp.zeros(1).block_until_ready()                    # this process's backend has started
+def test_left_alone_when_the_user_decides(monkeypatch):
     monkeypatch.setenv("XLA_FLAGS", "--xla_dump_to=/tmp/x")
+    monkeypatch.setenv("JAXMESH_XLA_DEFAULTS", "1")
     assert compiler.prefer_fast_cpu_compiles() is False
     assert os.environ["XLA_FLAGS"] == "--xla_dump_to=/tmp/x"
-    monkeypatch.setenv("JAXMESH_XLA_DEFAULTS", "1")
-    monkeypatch.setattr(compiler, "_backend_started", lambda: False)
-    assert compiler.prefer_fast_cpu_compiles() is False
     monkeypatch.delenv("JAXMESH_XLA_DEFAULTS")
     monkeypatch.setenv("XLA_FLAGS", "--xla_cpu_use_fusion_emitters=true")
     assert compiler.prefer_fast_cpu_compiles() is False
@@ -25,6 +20,11 @@ def test_left_alone_when_the_user_decides_or_the_backend_runs(monkeypatch):
     monkeypatch.setenv("XLA_FLAGS", "--xla_dump_to=/tmp/x")
     monkeypatch.setattr(compiler, "MEASURED_JAXLIB", ((0, 0),))
     assert compiler.prefer_fast_cpu_compiles() is False
+    from importlib.metadata import version
+
+    monkeypatch.setattr(compiler, "MEASURED_JAXLIB", (tuple(int(x) for x in version("jaxlib").split(".")[:2]),))
+    assert compiler.prefer_fast_cpu_compiles() is True
+    assert os.environ["XLA_FLAGS"] == f"--xla_dump_to=/tmp/x {compiler.CPU_COMPILE_FLAG}"
 
 
 def test_a_fresh_process_gets_the_flag_and_xla_accepts_it():
@@ -118,6 +118,7 @@ def test_compiled_programs_are_released_past_the_mapping_limit():
     """Below the limit the programs are kept; past it (limit 0) jax.clear_caches drops them, so the
     next call compiles again.  /proc/self/maps exists on the Linux CI."""
     import jax
+    import jax.numpy as jnp
 
     f = jax.jit(lambda x: x * 2 + 1)
     f(jnp.ones(3))

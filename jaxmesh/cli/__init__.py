@@ -98,10 +98,13 @@ def main(argv: list[str] | None = None) -> int:
     import jax
 
     jax.config.update("jax_enable_x64", True)  # the one place: files are read and written unrounded
-    # a host callback's exception reaches the command as its one error line; JAX's log of the same
+    # JAX's own log stays quiet during the command unless JAX_LOGGING_LEVEL asks for it: a host
+    # callback's exception reaches the command as its one error line, and JAX's log of the same
     # exception (a traceback on stderr) would only repeat it
-    callback_log = logging.getLogger("jax._src.callback")
-    level, callback_log.level = callback_log.level, logging.CRITICAL
+    jax_log = logging.getLogger("jax")
+    level = jax_log.level
+    if not os.environ.get("JAX_LOGGING_LEVEL"):
+        jax_log.setLevel(logging.CRITICAL)
     # warnings are one stderr line each, whatever filters the caller (a test run with
     # -W error, an embedding program) installed; both are restored on return
     with warnings.catch_warnings():
@@ -114,7 +117,7 @@ def main(argv: list[str] | None = None) -> int:
         try:
             return run_command(args._run, args)
         finally:
-            callback_log.setLevel(level)
+            jax_log.setLevel(level)
 
 
 def _finish_jax() -> None:
