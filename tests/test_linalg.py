@@ -163,3 +163,26 @@ def test_the_laplacian_form_sums_the_diagonal_in_float64_and_differentiates(syst
     ref = linalg.mesh_solve(mesh, ground, a32.astype(jnp.float64), b32.astype(jnp.float64), backend=backend,
                             laplacian=True)
     np.testing.assert_allclose(x32, ref, rtol=1e-5, atol=1e-5 * float(jnp.abs(ref).max()))
+
+
+def test_a_broken_inner_solve_reaches_the_non_finite_check():
+    """What the denoisers' inner CG solves (curvature flow, L0, impulse repair; ``throw=False``,
+    ``.value``) rely on: lineax gives NaN when CG breaks down on an operator that is not positive
+    definite, which the denoisers' non-finite check (``throw``) then reports; out of steps it gives
+    a finite iterate (L0's alternating steps are inexact by design and end most inner solves so)."""
+    import lineax as lx
+
+    a = np.diag(np.linspace(1.0, 100.0, 20)) + 0.1
+    b = jnp.asarray(np.linspace(-1.0, 1.0, 20))
+
+    def solve(a, steps):
+        op = lx.MatrixLinearOperator(jnp.asarray(a), lx.positive_semidefinite_tag)
+        return lx.linear_solve(op, b, lx.CG(rtol=1e-12, atol=1e-12, max_steps=steps), throw=False)
+
+    broken = solve(np.diag(np.r_[np.ones(10), -np.ones(10)]), 50)
+    assert broken.result != lx.RESULTS.successful and np.all(np.isnan(np.asarray(broken.value)))
+    short = solve(a, 1)
+    assert short.result == lx.RESULTS.max_steps_reached and np.all(np.isfinite(np.asarray(short.value)))
+    full = solve(a, 200)
+    assert full.result == lx.RESULTS.successful
+    np.testing.assert_allclose(np.asarray(full.value), np.linalg.solve(a, np.asarray(b)), rtol=1e-9)
