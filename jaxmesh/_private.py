@@ -60,6 +60,17 @@ def safe_normalize(x: Float[Array, "*batch d"], axis: int = -1) -> Float[Array, 
     return jnp.where(n > 0, x / jnp.where(n > 0, n, 1), 0)
 
 
+def filled_mass(mass: Float[Array, "*batch V"], empty: float = 1.0) -> Float[Array, "*batch V"]:
+    """The lumped mass of the vertices without area (isolated, or only on zero-area faces),
+    the one rule of every mass matrix: m_i where m_i > 0, else the mean of the positive
+    m_j of the same mesh (``empty`` where none is positive), so that M stays definite.  Such
+    a vertex has no stiffness either: its row only keeps it where it is."""
+    positive = mass > 0
+    count = jnp.sum(positive, axis=-1, keepdims=True)
+    mean = jnp.sum(jnp.where(positive, mass, 0), axis=-1, keepdims=True) / jnp.maximum(count, 1).astype(mass.dtype)
+    return jnp.where(positive, mass, jnp.where(count > 0, mean, jnp.asarray(empty, mass.dtype)))
+
+
 def lift(a: Array, ndim: int) -> Array:
     """``a`` with leading singleton axes so that it has ``ndim`` axes.
 

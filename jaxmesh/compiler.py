@@ -79,8 +79,8 @@ CACHE_OFF = ("off", "0", "none", "false", "no", "")
 
 
 def prefer_fast_cpu_compiles() -> bool:
-    """Add :data:`CPU_COMPILE_FLAG` to ``XLA_FLAGS`` when it can still take effect
-    and is known to help (module docstring); call before JAX's first computation.
+    """Add :data:`CPU_COMPILE_FLAG` to ``XLA_FLAGS`` where it is known to help (module
+    docstring); call before JAX's first computation, when XLA reads the flags.
 
     Arguments:
 

@@ -41,7 +41,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float, Int
 
-from ._private import safe_norm, segment_sum_scalars
+from ._private import filled_mass, safe_norm, segment_sum_scalars
 from .geometry import edge_lengths, face_areas, face_corners, hat_gradients, mean_edge_length
 from .intrinsic import (IntrinsicTriangulation, cotangents_from_lengths, intrinsic_delaunay, layout_from_lengths,
                         replay_flips)
@@ -196,8 +196,7 @@ def _heat(mesh: Mesh, sources, t, triangulation, labels, *, boundary: str, backe
     flat = faces.reshape(-1)
     mass = segment_sum_scalars(jnp.repeat(area / 3, 3), flat, n)
     positive = mass > 0
-    mean_mass = jnp.sum(jnp.where(positive, mass, 0)) / jnp.maximum(jnp.sum(positive), 1).astype(dtype)
-    mass = jnp.where(positive, mass, jnp.where(jnp.any(positive), mean_mass, 1.0))   # isolated vertices
+    mass = filled_mass(mass)                                          # vertices without area: the mean
     e0, e1 = pairs[:, 0], pairs[:, 1]
 
     def row_sums(w):

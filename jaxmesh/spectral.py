@@ -53,6 +53,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from jaxtyping import Array, Float, Int
 
+from ._private import filled_mass
 from .compress.basis import _canonical, _smallest
 from .geometry import face_areas
 from .linalg import sparse_matvec
@@ -83,9 +84,7 @@ def laplace_beltrami_system(mesh: Mesh) -> tuple[Float[Array, " V"], Float[Array
     diag = jnp.zeros(mesh.num_vertices, c.dtype).at[e[:, 0]].add(c).at[e[:, 1]].add(c)
     area = face_areas(mesh)
     mass = jnp.zeros(mesh.num_vertices, c.dtype).at[mesh.faces.reshape(-1)].add(jnp.repeat(area / 3, 3))
-    positive = mass > 0
-    mean = jnp.sum(jnp.where(positive, mass, 0)) / jnp.maximum(jnp.sum(positive), 1).astype(c.dtype)
-    return diag, -c, jnp.where(positive, mass, mean)
+    return diag, -c, filled_mass(mass, empty=0.0)       # no area at all: 0, which eigenpairs refuses
 
 
 def eigenpairs(

@@ -148,3 +148,15 @@ def test_dot_is_the_summed_product(shapes):
     b = jax.random.normal(jax.random.PRNGKey(1), shapes[1])
     np.testing.assert_allclose(dot(a, b), jnp.sum(a * b, axis=-1), rtol=1e-12, atol=1e-12)
     assert dot(a, b).shape == jnp.sum(a * b, axis=-1).shape
+
+
+def test_filled_mass_one_rule_by_hand():
+    """jaxmesh._private.filled_mass, the mass of vertices without area in every mass matrix
+    (spectral, heat geodesics, curvature flow): the mean of the mesh's positive masses, per
+    batch row; ``empty`` where a row has none."""
+    from jaxmesh._private import filled_mass
+
+    m = jnp.asarray([[2.0, 0.0, 4.0, 0.0], [0.0, 0.0, 0.0, 0.0]])
+    np.testing.assert_array_equal(np.asarray(filled_mass(m)), [[2, 3, 4, 3], [1, 1, 1, 1]])
+    np.testing.assert_array_equal(np.asarray(filled_mass(m[1], empty=0.0)), [0, 0, 0, 0])
+    np.testing.assert_array_equal(np.asarray(filled_mass(m[0])), [2, 3, 4, 3])

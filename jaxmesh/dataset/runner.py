@@ -53,6 +53,7 @@ class _Outcome(NamedTuple):
     params: dict | None = None
     error: BaseException | None = None
 
+
 @dataclasses.dataclass(frozen=True)
 class DatasetSummary:
     """What :func:`denoise_files` did: counts, the ``compiles`` (distinct

@@ -28,7 +28,7 @@ import jax.numpy as jnp
 import lineax as lx
 from jaxtyping import Array, Float
 
-from .._private import Scalar, lift, safe_divide, segment_sum_rows, segment_sum_scalars
+from .._private import Scalar, filled_mass, lift, safe_divide, segment_sum_rows, segment_sum_scalars
 from ..geometry import vertex_areas
 from ..linalg import sparse_solve
 from ..mesh import Mesh
@@ -84,10 +84,7 @@ def implicit_diffusion_step(
     mass = vertex_areas(geo) / 3
     connected = jnp.maximum(jnp.sum(mesh.degree > 0), 1).astype(x.dtype)  # padding/isolated do not count
     area_per_vertex = jnp.sum(mass, axis=-1) / connected
-    # a vertex with no area (isolated, or only on zero-area faces) has no stiffness either:
-    # give it the mean mass so the system stays definite and the vertex stays put
-    mean_mass = jnp.where(area_per_vertex > 0, area_per_vertex, 1)[..., None]
-    mass = jnp.where(mass > 0, mass, mean_mass)
+    mass = filled_mass(mass)    # a vertex without area has no stiffness either: it stays put
     tau = lift((jnp.asarray(dt, x.dtype) * area_per_vertex)[..., None, None], x.ndim)
     m = mass[..., None]
 

@@ -193,8 +193,8 @@ def _named(cfg: _Config, found: Found, loss, error, vertices, closing: int) -> _
     """The ``_Tuned`` of a search: coordinates u -> parameter values by name (inside jit: no
     eager dispatch); evaluations = grid points + optimiser steps + ``closing`` evaluations."""
     return _Tuned(cfg.values(found.u), cfg.values(found.grid_u), found.grid_loss, cfg.values(found.history_u),
-                 found.history_loss, found.converged, found.grid_loss.shape[-1] + found.steps + closing, loss, error,
-                 vertices)
+                  found.history_loss, found.converged, found.grid_loss.shape[-1] + found.steps + closing, loss,
+                  error, vertices)
 
 
 # --------------------------------------------------------------------------- results
