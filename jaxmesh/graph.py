@@ -29,6 +29,7 @@ def adjacency_from_faces(faces: np.ndarray, num_vertices: int) -> sp.csr_matrix:
     f = np.asarray(faces, np.int64)
     a = np.concatenate([f[:, 0], f[:, 1], f[:, 2]])
     b = np.concatenate([f[:, 1], f[:, 2], f[:, 0]])
+    a, b = a[a != b], b[a != b]                  # a face with a repeated index has no edge from a vertex to itself
     adj = sp.csr_matrix((np.ones(2 * len(a)), (np.r_[a, b], np.r_[b, a])), shape=(num_vertices,) * 2)
     adj.data[:] = 1.0
     return adj

@@ -139,3 +139,14 @@ def test_equal_to_libigl(name):
                                   "shark.ply", "human.ply", "bunny.ply", "armadillo.ply", "igea.ply"])
 def test_equal_to_libigl_on_every_shared_mesh(name):
     _compare_with_libigl(name)
+
+
+def test_adjacency_has_no_diagonal_even_for_a_face_with_a_repeated_index():
+    """A face (0, 0, 1) joins 0 and 1 only: the adjacency (vf's, and graph.adjacency_from_faces
+    behind it) stays 0/1 with a zero diagonal, as documented."""
+    from jaxmesh.graph import adjacency_from_faces
+
+    F = np.array([[0, 0, 1], [1, 2, 3]])
+    want = np.array([[0, 1, 0, 0], [1, 0, 1, 1], [0, 1, 0, 1], [0, 1, 1, 0]])
+    np.testing.assert_array_equal(vf.adjacency_matrix(F).toarray(), want)
+    np.testing.assert_array_equal(adjacency_from_faces(F, 4).toarray(), want)
