@@ -5,13 +5,15 @@ processes) is tested in tests/cli/test_cli_denoise.py."""
 
 from __future__ import annotations
 
+import json
+import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 import jaxmesh
-from jaxmesh.dataset import LADDER_RATIO, denoise_files, expand_inputs, plan_batches, rung
+from jaxmesh.dataset import LADDER_RATIO, denoise_files, expand_inputs, output_pairs, plan_batches, rung
 from jaxmesh.denoise import denoise_in_unit_frame
 from conftest import write_dataset, write_pairs
 
@@ -139,6 +141,41 @@ def test_a_report_that_fails_midway_stops_the_report_not_the_outputs_and_is_an_e
         denoise_files(paths, tmp_path / "out", "taubin", report="/dev/full")
     assert err.value.filename == "/dev/full"
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == sorted(p.name for p in paths)
+
+
+@pytest.mark.filterwarnings("ignore::jaxmesh.mesh.MeshWarning")
+def test_an_output_written_meanwhile_by_another_run_is_skipped_not_failed_nor_replaced(tmp_path):
+    """Two runs into one folder: the outputs the other run wrote while this one computed are
+    counted as skipped (not failed, and not replaced); simulated by writing every missing
+    output once this run's first output is written."""
+    paths = write_dataset(tmp_path / "in", 4)
+    out = tmp_path / "out"
+
+    def other_run(done, total):
+        if done == 1:
+            deadline = time.monotonic() + 60
+            while not list(out.glob("*.ply")) and time.monotonic() < deadline:    # this run's first output
+                time.sleep(0.01)
+            for p in paths:
+                if not (out / p.name).exists():
+                    (out / p.name).write_text("the other run's")
+
+    s = denoise_files(paths, out, "taubin", batch_size=1, progress=other_run, report=tmp_path / "r.jsonl")
+    assert (s.done, s.skipped, s.failed) == (1, 3, 0)
+    assert sum((out / p.name).read_bytes() == b"the other run's" for p in paths) == 3
+    lines = [json.loads(line) for line in (tmp_path / "r.jsonl").read_text().splitlines()]
+    assert sorted(r["status"] for r in lines) == ["ok", "skipped", "skipped", "skipped"]
+
+
+def test_an_output_that_is_its_own_input_is_refused_unless_overwrite(tmp_path):
+    paths = write_dataset(tmp_path / "in", 2)
+    before = [p.read_bytes() for p in paths]
+    with pytest.raises(ValueError, match="would be the input file itself .2 of 2"):
+        denoise_files(paths, tmp_path / "in", "taubin")
+    assert [p.read_bytes() for p in paths] == before
+    assert output_pairs(paths, tmp_path / "in", ".obj") == [(p, p.with_suffix(".obj")) for p in paths]
+    s = denoise_files(paths, tmp_path / "in", "taubin", overwrite=True)      # in place, asked for
+    assert s.done == 2 and all(p.read_bytes() != b for p, b in zip(paths, before))
 
 
 def test_inputs_from_files_directories_and_globs(tmp_path):

@@ -30,7 +30,7 @@ from pathlib import Path
 from collections.abc import Iterable, Sequence
 
 __all__ = ["LADDER_START", "LADDER_RATIO", "default_batch_size", "MESH_SUFFIXES", "rung", "Batch", "plan_batches",
-           "expand_inputs",
+           "expand_inputs", "output_pairs",
            "peek_sizes"]
 
 LADDER_START = 64
@@ -134,6 +134,34 @@ def expand_inputs(paths: Iterable[str]) -> list[Path]:
             found = [path]
         out += [q for q in found if q not in out]
     return out
+
+
+def output_pairs(inputs: Iterable[str | Path], out_dir: str | Path, suffix: str | None = None, *,
+                 overwrite: bool = False) -> list[tuple[Path, Path]]:
+    """Each input file (:func:`expand_inputs`) with its output: ``out_dir / (stem + suffix)``,
+    the suffix the input's by default.  Two inputs with one output name are refused, and so is
+    an output that is its own input unless ``overwrite`` (denoising in place).
+
+    Arguments:
+        inputs: files, directories and glob patterns.
+        out_dir: the output folder.
+        suffix: the outputs' suffix (default: each input's).
+        overwrite: whether outputs may replace existing files, the inputs among them.
+
+    Returns:
+        (input, output) per input file, in order."""
+    files = expand_inputs([str(p) for p in inputs])
+    if not files:
+        raise ValueError("no input meshes found")
+    pairs = [(src, Path(out_dir) / (src.stem + (suffix or src.suffix))) for src in files]
+    outs = [out for _, out in pairs]
+    if len(set(outs)) != len(outs):
+        raise ValueError("two inputs map to the same output name; give them distinct stems")
+    same = [src for src, out in pairs if out.exists() and src.exists() and out.samefile(src)]
+    if same and not overwrite:
+        raise ValueError(f"{same[0]}: its output would be the input file itself ({len(same)} of {len(pairs)} "
+                         "inputs); choose another output folder or suffix (overwrite=True, CLI: --force, denoises in place)")
+    return pairs
 
 
 def peek_sizes(path: Path) -> tuple[int, int] | None:

@@ -39,7 +39,7 @@ from ..compiler import release_compiled_programs
 from ..mesh import Mesh, to_device
 from . import supervision
 from .streams import Report, Writer, read_ahead
-from .plan import (LADDER_RATIO, LADDER_START, MESH_SUFFIXES, Batch, default_batch_size, expand_inputs, peek_sizes,
+from .plan import (LADDER_RATIO, LADDER_START, MESH_SUFFIXES, Batch, default_batch_size, output_pairs, peek_sizes,
                    plan_batches, rung)
 
 __all__ = ["DatasetSummary", "denoise_files"]
@@ -86,10 +86,6 @@ def _run_padded(mesh: Mesh, continuous: dict, method: str, statics: tuple):
     return jax.vmap(one)(mesh)
 
 
-def _output_for(path: Path, out_dir: Path, suffix: str | None) -> Path:
-    return out_dir / (path.stem + (suffix or path.suffix))
-
-
 def _tuned(params: dict) -> list[str]:
     """The parameters given as "auto": tuned blind, per mesh (SURE, :func:`~jaxmesh.tune.tune_batch`)."""
     return sorted(k for k, v in params.items() if isinstance(v, str) and v == "auto")
@@ -124,15 +120,8 @@ def _check(method: str, params: dict, suffix: str | None) -> str:
 
 def _collect(inputs, out_dir: Path, suffix: str | None, overwrite: bool, method: str, index: int, count: int):
     """(this share's inputs and outputs, one record each); existing outputs are
-    marked skipped.  Name clashes are checked over all shares."""
-    files = expand_inputs([str(p) for p in inputs])
-    if not files:
-        raise ValueError("no input meshes found")
-    items = [(src, _output_for(src, out_dir, suffix)) for src in files]
-    outs = [o for _, o in items]
-    if len(set(outs)) != len(outs):
-        raise ValueError("two inputs map to the same output name; give them distinct stems")
-    items = items[index::count]
+    marked skipped.  Name clashes and in-place outputs are checked over all shares."""
+    items = output_pairs(inputs, out_dir, suffix, overwrite=overwrite)[index::count]
     records = [{"input": str(src), "output": str(out), "method": method} for src, out in items]
     for rec, (_, out) in zip(records, items):
         if out.exists() and not overwrite:

@@ -80,7 +80,7 @@ class Report:
 
 class Writer:
     """Writes results on a thread, behind the computation; a write that fails marks
-    its record; each record goes to the report once written.  An error of the
+    its record failed (skipped when the output appeared meanwhile, written by another run); each record goes to the report once written.  An error of the
     thread itself (the report cannot be appended to, a disk full) stops the report,
     not the writes, and :meth:`close` raises it."""
 
@@ -99,6 +99,8 @@ class Writer:
                     if check is not None:
                         check()
                     self._save(mesh, path, overwrite=self._overwrite)
+                except FileExistsError:     # another run wrote it meanwhile (the write never clobbers)
+                    rec.update(status="skipped", reason="the output appeared while this run computed it")
                 except (ValueError, OSError) as err:
                     rec.update(status="failed", error=f"{type(err).__name__}: {err}")
                 if self.error is None:
