@@ -11,7 +11,9 @@ a reference, :func:`vertex_distances`) colours the meshes on one shared scale, w
 legend.
 
 Every panel uses the frame of the first mesh (its bounding-box centre and diagonal),
-so meshes that overlap in space overlap on screen too.  If the page fails (no
+so meshes that overlap in space overlap on screen too; at the start (and after a
+double-click) that mesh's bounding sphere fits the shorter side of each panel, so a
+long model is never cropped in a narrow panel, whatever its rotation.  If the page fails (no
 WebGL2, a shader error) it says so in the page and on the browser console, and the
 ``<body>`` carries ``data-status="error"``; when every panel is drawn it carries
 ``data-status="drawn"``.
@@ -224,6 +226,9 @@ html, body { margin: 0; height: 100%; background: #ffffff; font: 13px/1.4 system
   function rotY(t) { var c = Math.cos(t), s = Math.sin(t); return [c, 0, s, 0, 1, 0, -s, 0, c]; }
   var HOME = mul(rotX(0.35), rotY(-0.5));
   var view = { rot: HOME.slice(), zoom: 1.0 };
+  // the field of view spans the panel's shorter side; at zoom 1 the first mesh's bounding
+  // sphere (radius: half its diagonal, 0.5 in the page's frame) fits it, in any rotation
+  var FOV = 0.6, FIT = 0.52 / Math.sin(0.5 * FOV);
 
   var VS = "#version 300 es\n" +
     "in vec3 aPos; in vec3 aNormal; in vec3 aColor;\n" +
@@ -232,7 +237,7 @@ html, body { margin: 0; height: 100%; background: #ffffff; font: 13px/1.4 system
     "void main() {\n" +
     "  vec3 p = uRot * aPos; p.z -= uDist; vPos = p; vNormal = uRot * aNormal; vColor = aColor;\n" +
     "  float near = 0.01, far = 100.0;\n" +
-    "  gl_Position = vec4(p.x * uFocal / uAspect, p.y * uFocal,\n" +
+    "  gl_Position = vec4(p.x * uFocal / max(uAspect, 1.0), p.y * uFocal * min(uAspect, 1.0),\n" +
     "                     (p.z * (far + near) + 2.0 * far * near) / (near - far), -p.z);\n" +
     "}\n";
   var FS = "#version 300 es\nprecision highp float;\n" +
@@ -295,8 +300,8 @@ html, body { margin: 0; height: 100%; background: #ffffff; font: 13px/1.4 system
       gl.useProgram(prog); gl.bindVertexArray(vao);
       var r = view.rot;   // row-major -> column-major for GLSL
       gl.uniformMatrix3fv(u.uRot, false, [r[0], r[3], r[6], r[1], r[4], r[7], r[2], r[5], r[8]]);
-      gl.uniform1f(u.uDist, 1.3 / view.zoom);
-      gl.uniform1f(u.uFocal, 1.0 / Math.tan(0.5 * 0.6));
+      gl.uniform1f(u.uDist, FIT / view.zoom);
+      gl.uniform1f(u.uFocal, 1.0 / Math.tan(0.5 * FOV));
       gl.uniform1f(u.uAspect, w / h);
       gl.uniform1i(u.uFlat, document.getElementById("flat").checked ? 1 : 0);
       gl.drawElements(gl.TRIANGLES, count, gl.UNSIGNED_INT, 0);

@@ -120,3 +120,31 @@ def test_a_real_browser_draws_every_panel(tmp_path):
         assert panel.mean() > 0.05, f"panel {k} is (nearly) empty: {panel.mean():.3f} drawn"
     if docs:
         shutil.copyfile(shot, REPO / "docs" / "images" / "view-bunny.png")
+
+
+def test_a_long_model_is_not_cropped_in_narrow_panels(tmp_path):
+    """A box ten times longer than it is wide, in three panels of a 1200×560 window (each
+    taller than wide): at the start every panel shows the whole box, a white margin on all
+    four sides (the field of view spans the shorter side; before, the box ran off both
+    edges of every panel)."""
+    import trimesh
+
+    box = trimesh.creation.box(extents=(10, 1, 1)).subdivide()
+    mesh = jaxmesh.Mesh.from_arrays(np.asarray(box.vertices, np.float64), np.asarray(box.faces))
+    page = tmp_path / "long.html"
+    write_viewer(page, [(f"box {k}", mesh) for k in range(3)])
+    shot = tmp_path / "shot.png"
+    run = _browser(page, f"--screenshot={shot}", "--window-size=1200,560")
+    assert run.returncode == 0 and shot.is_file(), run.stderr[-2000:]
+    import matplotlib.image
+
+    img = matplotlib.image.imread(str(shot))[..., :3]
+    h, w, _ = img.shape
+    drawn = np.any(img < 0.9, axis=-1)[80:h - 10]
+    for k in range(3):
+        panel = drawn[:, k * w // 3 + 4:(k + 1) * w // 3 - 4]
+        cols, rows = np.flatnonzero(panel.any(0)), np.flatnonzero(panel.any(1))
+        assert cols.size, f"panel {k} is empty"
+        assert cols[0] > 0 and cols[-1] < panel.shape[1] - 1, f"panel {k}: the box touches a side, columns {cols[[0, -1]]}"
+        assert rows[0] > 0 and rows[-1] < panel.shape[0] - 1, f"panel {k}: the box touches the top or bottom"
+        assert cols[-1] - cols[0] > 0.6 * panel.shape[1], f"panel {k}: the box is drawn too small to judge"
