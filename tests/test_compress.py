@@ -522,3 +522,18 @@ def test_a_version_1_file_still_decodes():
     old = _recrc(C._HEAD_V1.pack(*fields[:-1]) + data[C._HEAD.size:-4])
     np.testing.assert_array_equal(C.decompress(old).vertices, C.decompress(data).vertices)
     assert C.inspect(old)["format_version"] == 1
+
+
+def test_bad_arguments_are_refused_with_their_domain(spot):
+    """keep, bits, basis and patch_size outside their domains are refused before any work;
+    a patch size above MAX_PATCH_SIZE too (it ran as one patch, whose eigensolve on a
+    large mesh needs more memory than a machine has)."""
+    from jaxmesh.compress import MAX_PATCH_SIZE
+
+    for kw, why in ((dict(keep=0.0), r"keep must be in \(0, 1\]"), (dict(keep=1.5), "keep must be"),
+                    (dict(bits=0), "bits must be"), (dict(bits=31), "bits must be"), (dict(basis="cot"), "basis must"),
+                    (dict(patch_size=15), r"patch_size must be an integer in \[16, 10000\]"),
+                    (dict(patch_size=MAX_PATCH_SIZE + 1), "patch_size must be"),
+                    (dict(patch_size=10**9), r"grows as patch² × keep")):
+        with pytest.raises(ValueError, match=why):
+            jaxmesh.compress.compress(spot, **kw)

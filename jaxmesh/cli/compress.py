@@ -23,7 +23,7 @@ def configure(p) -> None:
     p.add_argument("--basis", choices=("laplacian", "umbrella"), default="laplacian",
                    help="laplacian: Karni–Gotsman L = D - A (default); umbrella: the thesis's K = D^-1 A - I")
     p.add_argument("--patch-size", type=int, default=None,
-                   help="target vertices per METIS patch (default: 100/keep, clipped to 1000..3000)")
+                   help="target vertices per METIS patch, 16..10000 (default: 100/keep, clipped to 1000..3000)")
     p.add_argument("--preserve-order", action="store_true",
                    help="also store the vertex order (costs about log2(V) bits per vertex)")
     p.add_argument("--json", action="store_true", help="print the report as one JSON object")

@@ -6,7 +6,7 @@
 """
 
 from .basis import KINDS, SpectralBasis, graph_basis, spectral_basis
-from .codec import FORMAT_VERSION, MAGIC, CodecError, Compressed, compress, decompress, inspect
+from .codec import FORMAT_VERSION, MAGIC, MAX_PATCH_SIZE, CodecError, Compressed, compress, decompress, inspect
 from .connectivity import ConnectivityCode, encode_connectivity, decode_connectivity
 from .io import load_compressed, save_compressed
 from .projection import (
@@ -24,6 +24,7 @@ __all__ = [
     "spectral_basis",
     "FORMAT_VERSION",
     "MAGIC",
+    "MAX_PATCH_SIZE",
     "CodecError",
     "Compressed",
     "compress",

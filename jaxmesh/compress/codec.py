@@ -62,11 +62,15 @@ from ._sections import _FALLBACK, _ORDER, _UMBRELLA, SECTION_TABLE, _patch_bases
 from .coefficients import CodecError
 from .rangecoder import RangeCoderError
 
-__all__ = ["MAGIC", "FORMAT_VERSION", "SECTIONS", "CodecError", "Compressed", "auto_patch_size", "compress", "decompress",
-           "inspect"]
+__all__ = ["MAGIC", "FORMAT_VERSION", "SECTIONS", "MAX_PATCH_SIZE", "CodecError", "Compressed", "auto_patch_size", "compress",
+           "decompress", "inspect"]
 
 MAGIC = b"\x89JXM\r\n\x1a\n"
 FORMAT_VERSION = 2
+#: the largest ``patch_size``: a patch's eigensolve costs about patch² × keep in time and
+#: patch × keep vectors in memory (10 000 vertices at keep = 0.1: about 0.2 GB; one patch of
+#: a 500k-vertex scan, about 200 GB).
+MAX_PATCH_SIZE = 10_000
 #: the file's sections, in file order: the header stores their byte lengths in this order
 SECTIONS = tuple(sec.name for sec in SECTION_TABLE)
 _HEAD = struct.Struct(f"<8sHHIIIBdd3d{len(SECTIONS)}II")
@@ -145,8 +149,9 @@ def _check_arguments(mesh: Mesh, keep, bits, basis, patch_size) -> int:
         raise ValueError(f"basis must be one of {_basis.KINDS}, got {basis!r}")
     if patch_size is None:
         patch_size = auto_patch_size(keep)
-    if not (isinstance(patch_size, (int, np.integer)) and patch_size >= 16):
-        raise ValueError(f"patch_size must be an integer >= 16, got {patch_size!r}")
+    if not (isinstance(patch_size, (int, np.integer)) and 16 <= patch_size <= MAX_PATCH_SIZE):
+        raise ValueError(f"patch_size must be an integer in [16, {MAX_PATCH_SIZE}] (the eigensolve grows as "
+                         f"patch² × keep), got {patch_size!r}")
     return int(patch_size)
 
 
@@ -162,7 +167,8 @@ def compress(mesh: Mesh, keep: float = 0.1, bits: int = 12, *, basis: str = "lap
         bits: quantization step = largest bounding-box side · 2^-bits, in [1, 30].
         basis: ``"laplacian"`` (Karni–Gotsman, default) or ``"umbrella"`` (the
             thesis's K).
-        patch_size: target vertices per METIS patch (default :func:`auto_patch_size`).
+        patch_size: target vertices per METIS patch, in [16, :data:`MAX_PATCH_SIZE`] (default
+            :func:`auto_patch_size`).
         preserve_order: also store the vertex permutation (≈ log2 V bits per vertex)
             so that :func:`decompress` returns the original vertex order (the faces
             are the same oriented triangles, in the decoder's order).
