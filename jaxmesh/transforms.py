@@ -8,10 +8,13 @@ import numpy as np
 from ._private import lift
 from .mesh import Mesh
 
-__all__ = ["normalize", "bounding_box_center", "unit_frame", "to_frame", "from_frame", "far_vertices", "FAR_RATIO"]
+__all__ = ["normalize", "bounding_box_center", "unit_frame", "to_frame", "from_frame", "far_mask", "far_vertices",
+           "FAR_RATIO"]
 
 #: a used vertex farther than this many times the median distance from the median position is far
 FAR_RATIO = 1e4
+#: the medians of the far test are taken over at most this many vertices (every k-th)
+FAR_SAMPLE = 1024
 
 
 def bounding_box_center(mesh: Mesh):
@@ -26,23 +29,68 @@ def bounding_box_center(mesh: Mesh):
     return 0.5 * (jnp.max(v, axis=-2) + jnp.min(v, axis=-2))
 
 
-def unit_frame(mesh: Mesh):
-    """The library's one working frame: ``(centre (*batch, 3), scale (*batch,))``
-    of the bounding box of the vertices that have neighbours (isolated and
-    padding vertices left out), c its centre and s its diagonal, so that
-    v' = (v - c) / s has a unit diagonal.  A box of zero diagonal gets s = 1.
-    Used by :func:`normalize`, the CLI and the tuner alike.
+def _lower_median(x, valid, xp):
+    """The lower median of ``x`` (*batch, n, d) over axis -2 where ``valid`` (*batch, n, 1);
+    +inf where none is (numpy or jax.numpy, as ``xp``)."""
+    x = xp.sort(xp.where(valid, x, xp.inf), axis=-2)
+    k = (xp.sum(valid, axis=-2, keepdims=True) - 1) // 2
+    return xp.take_along_axis(x, xp.broadcast_to(xp.maximum(k, 0), x.shape[:-2] + (1, x.shape[-1])), axis=-2)
+
+
+def _far(v, used, ratio: float, xp):
+    """The far test, written once for numpy (host) and jax.numpy (traced) alike: v (*batch, V, 3),
+    used (*batch, V, 1) -> (*batch, V).  The medians are of every k-th vertex, at most
+    :data:`FAR_SAMPLE` of them (a far vertex is 10⁴ median distances out: a sample's median does)."""
+    step = -(-v.shape[-2] // FAR_SAMPLE)
+    sample, in_sample = v[..., ::step, :], used[..., ::step, :]
+    centre = _lower_median(sample, in_sample, xp)
+    d = xp.sqrt(xp.sum((v - centre) ** 2, axis=-1, keepdims=True))     # inf where the square overflows: far
+    typical = _lower_median(d[..., ::step, :], in_sample, xp)
+    return (used & (typical > 0) & (typical < xp.inf) & (d > ratio * typical))[..., 0]
+
+
+def far_mask(mesh: Mesh, ratio: float = FAR_RATIO):
+    """The used vertices far from the rest, (*batch, V) bool: ‖v_i − m‖ > ratio · d̃, with m
+    the coordinate-wise median of the used vertices and d̃ the median of their distances to
+    m, both over every k-th vertex, k = ⌈V / :data:`FAR_SAMPLE`⌉ (lower medians; no vertex is
+    far when d̃ = 0).  Such a vertex (a corrupt coordinate, 1e30) would set
+    a bounding box alone; :func:`unit_frame` leaves it out.
 
     Arguments:
         mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+        ratio: the distance, in median distances, beyond which a vertex is far.
+
+    Returns:
+        (*batch, V) bool."""
+    v = mesh.vertices
+    return _far(v, lift((mesh.degree > 0)[:, None], v.ndim), ratio, jnp)
+
+
+def unit_frame(mesh: Mesh, far=None):
+    """The library's one working frame: ``(centre (*batch, 3), scale (*batch,))``
+    of the bounding box of the vertices that have neighbours and are not far from
+    the rest (:func:`far_mask`; isolated and padding vertices left out), c its
+    centre and s its diagonal, so that v' = (v - c) / s has a unit diagonal.  A box
+    of zero diagonal gets s = 1.  A far vertex is mapped too, far outside the unit
+    box, and the others keep their precision.  Used by :func:`normalize`, the CLI
+    and the tuner alike.
+
+    Arguments:
+        mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
+        far: :func:`far_mask` of ``mesh``, when the caller has it (default: computed).
 
     Returns:
         (centre (*batch, 3), scale (*batch,))."""
     v = mesh.vertices
-    used = lift((mesh.degree > 0)[:, None], v.ndim)
+    far = far_mask(mesh) if far is None else far
+    used = lift((mesh.degree > 0)[:, None], v.ndim) & ~far[..., None]
     hi = jnp.max(jnp.where(used, v, -jnp.inf), axis=-2)
     lo = jnp.min(jnp.where(used, v, jnp.inf), axis=-2)
-    diag = jnp.sqrt(jnp.sum((hi - lo) ** 2, axis=-1))
+    side = hi - lo
+    diag = jnp.sqrt(jnp.sum(side ** 2, axis=-1))
+    big = jnp.max(jnp.abs(side), axis=-1)
+    scaled = big * jnp.sqrt(jnp.sum((side / jnp.where(big > 0, big, 1)[..., None]) ** 2, axis=-1))
+    diag = jnp.where(jnp.isfinite(diag), diag, scaled)            # the plain form overflowed (float32, > 1e19)
     return 0.5 * (hi + lo), jnp.where(diag > 0, diag, jnp.ones_like(diag))
 
 
@@ -91,10 +139,9 @@ def normalize(mesh: Mesh, *, return_transform: bool = False):
 
 
 def far_vertices(mesh: Mesh, ratio: float = FAR_RATIO) -> np.ndarray:
-    """The used vertices that lie more than ``ratio`` times the median distance d̃ from the
-    median position: ‖v_i − med(v)‖ > ratio · med_j ‖v_j − med(v)‖.  Such a vertex (a corrupt
-    coordinate, 1e30) sets :func:`unit_frame` alone, and the other vertices lose their
-    precision in it; the command line warns about them.
+    """The indices of the used vertices far from the rest (:func:`far_mask`, computed on the
+    host): a corrupt coordinate, which :func:`unit_frame` leaves out of the frame and the command line
+    names in a warning.
 
     Arguments:
         mesh: a single mesh.
@@ -104,10 +151,8 @@ def far_vertices(mesh: Mesh, ratio: float = FAR_RATIO) -> np.ndarray:
         The far vertices' indices, (k,) int (empty for an ordinary mesh)."""
     if mesh.batch_shape:
         raise ValueError(f"far_vertices needs a single mesh, got batch shape {mesh.batch_shape}")
-    used = np.flatnonzero(np.asarray(mesh.degree) > 0)
-    x = np.asarray(mesh.vertices, np.float64)[used]
-    if len(x) == 0:
-        return used
-    d = np.linalg.norm(x - np.median(x, axis=0), axis=1)
-    typical = np.median(d)
-    return used[d > ratio * typical] if typical > 0 else used[:0]
+    used = np.asarray(mesh.degree)[:, None] > 0
+    if not used.any():
+        return np.flatnonzero(used)
+    with np.errstate(over="ignore", invalid="ignore"):
+        return np.flatnonzero(_far(np.asarray(mesh.vertices), used, ratio, np))

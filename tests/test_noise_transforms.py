@@ -81,3 +81,67 @@ def test_impulsive_noise_is_jittable_in_the_fraction_and_differentiable_in_sigma
     h = 1e-6
     fd = (jnp.sum(f(0.4, 0.3 + h) ** 2) - jnp.sum(f(0.4, 0.3 - h) ** 2)) / (2 * h)
     assert float(g) == pytest.approx(float(fd), rel=1e-6)
+
+
+def _with_far(mesh, index=0, value=1e30):
+    v = np.asarray(mesh.vertices, np.float64).copy()
+    v[index, 0] = value
+    return mesh.with_vertices(v)
+
+
+def test_far_vertices_leave_the_frame_and_the_rest_keeps_it(spot):
+    """A corrupt coordinate (1e30) is far (host and traced tests agree, batched too); the
+    frame is the box of the others, exactly the frame of the mesh without it, and an
+    ordinary mesh's frame is its plain box.  In float32, where the plain diagonal of such a
+    box overflows, the scale stays finite."""
+    from jaxmesh.transforms import far_mask, far_vertices, unit_frame
+
+    v = np.asarray(spot.vertices, np.float64)
+    c, s = unit_frame(spot)
+    np.testing.assert_array_equal(c, 0.5 * (v.max(0) + v.min(0)))
+    assert float(s) == float(np.sqrt(np.sum((v.max(0) - v.min(0)) ** 2)))
+    far = _with_far(spot, 5)
+    np.testing.assert_array_equal(far_vertices(far), [5])
+    np.testing.assert_array_equal(np.flatnonzero(np.asarray(far_mask(far))), [5])
+    np.testing.assert_array_equal(np.flatnonzero(np.asarray(jax.jit(far_mask)(far))), [5])
+    rest = np.delete(v, 5, axis=0)
+    cf, sf = unit_frame(far)
+    np.testing.assert_allclose(cf, 0.5 * (rest.max(0) + rest.min(0)), rtol=1e-15)
+    np.testing.assert_allclose(sf, np.linalg.norm(rest.max(0) - rest.min(0)), rtol=1e-15)
+    both = spot.with_vertices(jnp.stack([spot.vertices, far.vertices]))
+    mask = np.asarray(far_mask(both))
+    assert mask.shape == (2, spot.num_vertices) and not mask[0].any() and np.flatnonzero(mask[1]).tolist() == [5]
+    assert far_vertices(spot).size == 0
+    big = spot.with_vertices(jnp.asarray(1e20 * v, jnp.float32))      # 1e20² overflows float32
+    c32, s32 = unit_frame(big)
+    assert np.isfinite(np.asarray(s32)) and float(s32) == pytest.approx(1e20 * float(s), rel=1e-5)
+
+
+@pytest.mark.filterwarnings("ignore::jaxmesh.mesh.MeshWarning")
+def test_a_far_vertex_is_refused_or_named_never_a_silent_wreck(spot):
+    """Denoising a mesh with a 1e30 coordinate is an error naming the vertex where the method
+    spreads it over its neighbours (the box of the others grows), and otherwise leaves the others
+    as the method would; the blind default and the codec refuse it up front.
+    Before, in float32 the frame's scale overflowed and the output was NaN without an error; in
+    float64 every other vertex moved by up to 1e12 diagonals."""
+    from jaxmesh.denoise import denoise_in_unit_frame
+    from jaxmesh.tune import choose_denoiser
+
+    far = _with_far(spot, 3)
+    for dtype in (np.float64, np.float32):
+        cast = far.with_vertices(jnp.asarray(far.vertices, dtype))
+        with pytest.raises(FloatingPointError, match="vertex 3 lies far from the rest"):
+            denoise_in_unit_frame(cast, "taubin")
+    with pytest.raises(FloatingPointError, match="vertex 3 lies far"):     # float32: its normals overflow
+        denoise_in_unit_frame(far.with_vertices(jnp.asarray(far.vertices, np.float32)), "bilateral")
+    # in float64 a normal filter moves vertices along the normals of their own faces: in the
+    # robust frame the others are denoised as usual (before: every vertex moved by 1e12 diagonals)
+    out = np.asarray(denoise_in_unit_frame(far, "bilateral").vertices, np.float64)
+    moved = np.delete(np.linalg.norm(out - np.asarray(far.vertices), axis=1), 3)
+    assert np.all(moved < 0.05 * float(jaxmesh.bounding_box_diagonal(spot))), moved.max()
+    with pytest.raises(ValueError, match="vertex 3 lies far from the rest"):
+        choose_denoiser(far)
+    with pytest.raises(ValueError, match="vertex 3 lies far .*quantization step"):
+        jaxmesh.compress.compress(far)
+    with pytest.raises(FloatingPointError, match="diverged .*smaller step"):     # no far vertex: the usual hint
+        denoise_in_unit_frame(_with_far(spot, 3, np.nan), "taubin")

@@ -54,8 +54,9 @@ def load_input(args):
     if far.size:
         at = [float(c) for c in mesh.vertices[int(far[0])]]
         print(f"jaxmesh: warning: {args.input}: {far.size} vertex(es) lie more than 1e4 times the typical distance "
-              f"from the rest (vertex {int(far[0])} at {at}: a corrupt coordinate?); they set the working "
-              "frame alone and the other vertices lose their precision in it; remove them first", file=sys.stderr)
+              f"from the rest (vertex {int(far[0])} at {at}: a corrupt coordinate?); the working frame leaves "
+              "them out, but a denoiser spreads them over their neighbours and a codec's quantization erases the "
+              "rest: remove them first", file=sys.stderr)
     return args.input, mesh
 
 

@@ -55,6 +55,7 @@ import numpy as np
 
 from ..mesh import Mesh
 from ..metrics import rms_vertex_error
+from ..transforms import far_vertices
 from . import basis as _basis
 from . import connectivity as _conn
 from . import patches as _patches
@@ -147,6 +148,10 @@ def _check_arguments(mesh: Mesh, keep, bits, basis, patch_size) -> int:
         raise ValueError(f"bits must be an integer in [1, 30], got {bits!r}")
     if basis not in _basis.KINDS:
         raise ValueError(f"basis must be one of {_basis.KINDS}, got {basis!r}")
+    far = far_vertices(mesh)
+    if far.size:
+        raise ValueError(f"vertex {int(far[0])} lies far from the rest ({far.size} such: a corrupt coordinate?): the "
+                         "quantization step, the largest side / 2^bits, would erase every other coordinate; remove it first")
     if patch_size is None:
         patch_size = auto_patch_size(keep)
     if not (isinstance(patch_size, (int, np.integer)) and 16 <= patch_size <= MAX_PATCH_SIZE):
@@ -167,8 +172,7 @@ def compress(mesh: Mesh, keep: float = 0.1, bits: int = 12, *, basis: str = "lap
         bits: quantization step = largest bounding-box side · 2^-bits, in [1, 30].
         basis: ``"laplacian"`` (Karni–Gotsman, default) or ``"umbrella"`` (the
             thesis's K).
-        patch_size: target vertices per METIS patch, in [16, :data:`MAX_PATCH_SIZE`] (default
-            :func:`auto_patch_size`).
+        patch_size: target vertices per METIS patch, 16 to :data:`MAX_PATCH_SIZE` (:func:`auto_patch_size`).
         preserve_order: also store the vertex permutation (≈ log2 V bits per vertex)
             so that :func:`decompress` returns the original vertex order (the faces
             are the same oriented triangles, in the decoder's order).

@@ -9,16 +9,18 @@ value passed back in reproduces the tuned run exactly.
 
 from __future__ import annotations
 
+import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array
 
 from ..mesh import Mesh
-from ..transforms import from_frame, to_frame, unit_frame
+from ..transforms import far_mask, far_vertices, from_frame, to_frame, unit_frame
 from .registry import Method, as_method, diverged
 
 __all__ = ["denoise_in_unit_frame", "framed_run"]
 
 
-def framed_run(mesh: Mesh, method: str | Method, **params) -> tuple[Mesh, Array]:
+def framed_run(mesh: Mesh, method: str | Method, *, far=None, **params) -> tuple[Mesh, Array]:
     """(``method`` run in ``mesh``'s unit frame and mapped back, whether it
     diverged): the jittable and vmappable core of :func:`denoise_in_unit_frame`
     (auxiliary inputs must be given).  The dataset runner vmaps it.
@@ -26,22 +28,26 @@ def framed_run(mesh: Mesh, method: str | Method, **params) -> tuple[Mesh, Array]
     Arguments:
         mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
         method: a registry name from :data:`~jaxmesh.denoise.METHODS` or a :class:`~jaxmesh.denoise.Method`.
+        far: :func:`~jaxmesh.transforms.far_mask` of ``mesh`` when the caller has it (a host
+            caller passes :func:`~jaxmesh.transforms.far_vertices` as a mask: no sort in the program).
         **params: the method's parameters, auxiliary inputs included.
 
     Returns:
         (the denoised mesh, a bool per batch element: diverged)."""
     m = as_method(method)
-    centre, scale = unit_frame(mesh)
+    far = far_mask(mesh) if far is None else far      # the same vertices are far in the frame: computed once
+    centre, scale = unit_frame(mesh, far)
     work = to_frame(mesh, centre, scale)
     out = m(work, throw=False, **params)
-    return from_frame(out, centre, scale), diverged(work, out)
+    return from_frame(out, centre, scale), diverged(work, out, far=far)
 
 
 def denoise_in_unit_frame(mesh: Mesh, method: str | Method, **params) -> Mesh:
     """``method(mesh', **params)`` with mesh' = (mesh − c) / s (:func:`unit_frame`),
     mapped back by v = v' s + c.  Auxiliary inputs (the face graph) are built
     unless given.  Raises ``FloatingPointError`` when the run diverged
-    (non-finite, or a bounding box grown tenfold: :func:`diverged`).
+    (non-finite, or a bounding box grown tenfold: :func:`diverged`; a far vertex,
+    :func:`~jaxmesh.transforms.far_vertices`, smeared over its neighbours is named).
 
     Arguments:
         mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
@@ -52,9 +58,13 @@ def denoise_in_unit_frame(mesh: Mesh, method: str | Method, **params) -> Mesh:
         The denoised mesh, in ``mesh``'s units."""
     m = as_method(method)
     aux = {k: v for k, v in m.prepare(mesh).items() if params.get(k) is None}
-    out, bad = framed_run(mesh, m, **{**params, **aux})
+    far = None if mesh.batch_shape else far_vertices(mesh)
+    mask = None if far is None else jnp.asarray(np.isin(np.arange(mesh.num_vertices), far))
+    out, bad = framed_run(mesh, m, far=mask, **{**params, **aux})
     if bool(bad):
         shown = {k: v for k, v in params.items() if k not in m.aux}
-        raise FloatingPointError(f"{m.name} diverged (non-finite or exploding coordinates) with {shown}; "
-                                 "use a larger lam, fewer iterations or a smaller step")
+        far = () if far is None else far
+        hint = (f"vertex {int(far[0])} lies far from the rest (a corrupt coordinate?) and the method spreads it over "
+                "its neighbours: remove it first" if len(far) else "use a larger lam, fewer iterations or a smaller step")
+        raise FloatingPointError(f"{m.name} diverged (non-finite or exploding coordinates) with {shown}; {hint}")
     return out

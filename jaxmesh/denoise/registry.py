@@ -21,8 +21,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..geometry import bounding_box_diagonal
+from .._private import lift, safe_norm
 from ..mesh import Mesh, MeshWarning
+from ..transforms import far_mask
 from .anisotropic import anisotropic_diffusion
 from .bilateral import bilateral_denoising
 from .curvature import cotangent_flow
@@ -330,19 +331,28 @@ def denoise(mesh: Mesh, method: "str | Method" = "kernel", *, where=None, throw:
     return out if where is None else hold(mesh, out, where)
 
 
-def diverged(before: Mesh, after: Mesh, growth: float = 10.0):
+def diverged(before: Mesh, after: Mesh, growth: float = 10.0, far=None):
     """True (per batch element) where ``after`` has a non-finite coordinate or a
     bounding-box diagonal more than ``growth`` times that of ``before``: a
-    smoothing flow never enlarges a mesh, so growth means the run blew up.
+    smoothing flow never enlarges a mesh, so growth means the run blew up.  Both
+    boxes are of the vertices that are not far in ``before``
+    (:func:`~jaxmesh.transforms.far_mask`), so a corrupt coordinate smeared over
+    its neighbours counts as growth.
 
     Arguments:
         before: the input mesh.
         after: the output mesh.
         growth: the largest allowed growth of the bounding-box diagonal.
+        far: :func:`~jaxmesh.transforms.far_mask` of ``before``, when the caller has it.
 
     Returns:
         A bool array, (*batch)."""
     x = after.vertices
     finite = jnp.all(jnp.isfinite(x), axis=(-2, -1))
-    grown = bounding_box_diagonal(after) > growth * bounding_box_diagonal(before)
+    near = lift(~(far_mask(before) if far is None else far)[..., None], x.ndim)
+
+    def diagonal(v):
+        return safe_norm(jnp.max(jnp.where(near, v, -jnp.inf), axis=-2) - jnp.min(jnp.where(near, v, jnp.inf), axis=-2))
+
+    grown = diagonal(x) > growth * diagonal(before.vertices)
     return ~finite | grown

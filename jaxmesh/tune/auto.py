@@ -58,6 +58,7 @@ from .._threads import concurrent_map
 from ..geometry import face_normals, mean_edge_length, vertex_normals
 from ..host import HostMesh
 from ..mesh import Mesh
+from ..transforms import far_vertices
 from .blend import (BLEND_DRAWS, BLEND_SALT, BLEND_SIZE, SNAPSHOT_FACTORS, best_mixture, check_snapshots,
                     snapshot_rows, tilt_gram)
 from .heldout import (HELD_OUT_MIN_FACES, feature_faces, held_out_inputs, held_out_split, measured_faces,
@@ -119,6 +120,10 @@ def _check(noisy: Mesh, candidates: Sequence[Candidate], paths: Sequence[SearchP
         raise TypeError(f"noisy must be a jaxmesh.Mesh, got {type(noisy).__name__}")
     if noisy.batch_shape:
         raise ValueError("choose_denoiser takes one mesh; loop over a batch")
+    far = far_vertices(noisy)
+    if far.size:
+        raise ValueError(f"vertex {int(far[0])} lies far from the rest ({far.size} such: a corrupt coordinate?); its "
+                         "edges set the mean edge length the noise is read in: remove it first")
     if not candidates and not paths:
         raise ValueError("candidates: give at least one (method, params) pair, or a path to search")
     for path in paths:

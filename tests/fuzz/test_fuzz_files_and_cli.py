@@ -329,7 +329,7 @@ def test_a_reference_of_another_connectivity_is_named_not_broadcast(tmp_path, ca
     assert code == 1 and err == [f"jaxmesh: error: --reference {b} does not have the connectivity of {a}"]
 
 
-def test_a_far_vertex_is_named_before_it_wrecks_the_frame(tmp_path, capsys, tetra):
+def test_a_far_vertex_is_named_and_a_run_that_spreads_it_is_an_error(tmp_path, capsys, tetra):
     from jaxmesh.transforms import far_vertices
 
     v = np.vstack([np.asarray(tetra.vertices), [[1e30, 0.0, 0.0]]])
@@ -341,5 +341,8 @@ def test_a_far_vertex_is_named_before_it_wrecks_the_frame(tmp_path, capsys, tetr
     assert far_vertices(unused).size == 0                                          # frame uses it
     path = tmp_path / "far.ply"
     jaxmesh.save(far, path)
-    assert main(["denoise", str(path), str(tmp_path / "out.ply"), "--method", "taubin", "--iterations", "1"]) == 0
-    assert "1 vertex(es) lie more than 1e4 times the typical distance" in capsys.readouterr().err
+    assert main(["denoise", str(path), str(tmp_path / "out.ply"), "--method", "taubin", "--iterations", "1"]) == 1
+    err = capsys.readouterr().err
+    assert "1 vertex(es) lie more than 1e4 times the typical distance" in err
+    assert "jaxmesh: error: taubin diverged" in err and "vertex 4 lies far from the rest" in err   # spread, not silent
+    assert not (tmp_path / "out.ply").exists()
