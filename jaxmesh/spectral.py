@@ -54,7 +54,7 @@ import scipy.sparse.linalg as spla
 from jaxtyping import Array, Float, Int
 
 from ._private import filled_mass
-from .compress.basis import _canonical, _smallest
+from ._eigen import canonical, smallest
 from .geometry import face_areas
 from .linalg import sparse_matvec
 from .mesh import Mesh
@@ -238,12 +238,12 @@ def _solve_eigh(edges, diag, vals, mass, *, k: int, dense_max: int, cluster_rtol
     bound = float(np.abs(mat).sum(axis=1).max()) or 1.0
     tol = cluster_rtol * bound
     kk = min(n, k + _PAD)
-    w, y = _smallest(mat, kk, n <= dense_max, sigma=-1e-3 * bound)
+    w, y = smallest(mat, kk, n <= dense_max, sigma=-1e-3 * bound)
     if k < len(w) and w[k] - w[k - 1] <= tol:
         ok = [j for j in range(1, len(w)) if w[j] - w[j - 1] > tol]
         raise ValueError(f"eigenpairs: k = {k} cuts a cluster of equal eigenvalues ({w[k - 1]:.6g} = {w[k]:.6g}); "
                          f"take k in {ok[:12]} (or another k that ends a cluster)")
-    y = _canonical(y, w, tol)
+    y = canonical(y, w, tol)
     return w[:k], s[:, None] * y[:, :k], np.float64(bound)
 
 

@@ -38,10 +38,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
+from .._eigen import canonical, smallest
+from .._eigen import fixed_vectors as fixed_vectors
 from ..graph import adjacency_from_faces
 
 __all__ = [
@@ -73,27 +73,6 @@ class SpectralBasis:
         return self.vectors.shape[1]
 
 
-def fixed_vectors(m: int, k: int, salt: int = 0) -> np.ndarray:
-    """(m, k) pseudo-random values in [−1, 1), the same on every machine:
-    splitmix64 of (row, column, salt), in numpy's wrapping uint64 arithmetic.
-
-    Arguments:
-        m: rows.
-        k: columns.
-        salt: a 64-bit salt that selects another sequence.
-
-    Returns:
-        (m, k) float64 array in [−1, 1)."""
-    i = np.arange(m, dtype=np.uint64)[:, None]
-    j = np.arange(k, dtype=np.uint64)[None, :]
-    with np.errstate(over="ignore"):
-        z = i * np.uint64(0x9E3779B97F4A7C15) + (j + np.uint64(salt) * np.uint64(65537)) * np.uint64(0xD1B54A32D192ED03)
-        z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
-        z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
-        z = z ^ (z >> np.uint64(31))
-    return (z >> np.uint64(11)).astype(np.float64) * 2.0 ** -52 - 1.0
-
-
 def _operator(adjacency: sp.csr_matrix, kind: str) -> tuple[sp.csr_matrix, np.ndarray, float]:
     """(symmetric M whose smallest eigenpairs we want, D (clamped to 1), bound on M's spectrum)."""
     d = np.asarray(adjacency.sum(axis=1)).ravel()
@@ -105,61 +84,6 @@ def _operator(adjacency: sp.csr_matrix, kind: str) -> tuple[sp.csr_matrix, np.nd
         mat = sp.diags((d > 0).astype(np.float64)) - sp.diags(s) @ adjacency @ sp.diags(s)
         return mat.tocsr(), dc, 2.0
     raise ValueError(f"kind must be one of {KINDS}, got {kind!r}")
-
-
-def _smallest(mat: sp.csr_matrix, k: int, dense: bool, sigma: float = -1e-2) -> tuple[np.ndarray, np.ndarray]:
-    """The k smallest eigenpairs of a symmetric positive semi-definite matrix, ascending:
-    dense ``eigh`` (only those), or ARPACK shift-invert around ``sigma`` < 0 (below the
-    spectrum, so the factorization is definite) from a fixed start vector."""
-    n = mat.shape[0]
-    if dense or k >= n - 1:
-        w, u = scipy.linalg.eigh(mat.toarray(), subset_by_index=[0, min(k, n) - 1], driver="evx")
-        return w, u
-    v0 = fixed_vectors(n, 1, salt=7)[:, 0]
-    w, u = spla.eigsh(mat.tocsc(), k=k, sigma=sigma, which="LM", v0=v0, tol=0, OPinv=_shifted_inverse(mat, sigma))
-    order = np.argsort(w, kind="stable")
-    return w[order], u[:, order]
-
-
-def _shifted_inverse(mat: sp.csr_matrix, sigma: float) -> spla.LinearOperator:
-    """(mat − σI)⁻¹ as an operator, factored once by :mod:`jaxmesh.linalg`'s host
-    factorization (sparse Cholesky when cholespy is installed: positive definite for
-    σ < 0 below a semi-definite spectrum; SuperLU otherwise).  ARPACK's shift-invert
-    mode calls it a few hundred times per patch: CHOLMOD's solve made the codec's
-    eigensolves 25–30 % faster than ARPACK's own SuperLU (benchmarks/bench_compress.py)."""
-    from ..linalg import _Factor, default_backend
-
-    n = mat.shape[0]
-    upper = sp.triu(mat, k=1).tocoo()
-    factor = _Factor(n, np.stack([upper.row, upper.col], 1), mat.diagonal() - sigma, upper.data, default_backend())
-    return spla.LinearOperator((n, n), matvec=factor.solve, dtype=np.float64)
-
-
-def _clusters(w: np.ndarray, tol: float) -> list[tuple[int, int]]:
-    out = []
-    s = 0
-    for i in range(1, len(w) + 1):
-        if i == len(w) or w[i] - w[i - 1] > tol:
-            out.append((s, i))
-            s = i
-    return out
-
-
-def _canonical(u: np.ndarray, w: np.ndarray, tol: float) -> np.ndarray:
-    """Canonical eigenvectors: one per cluster rotation and sign (see module doc)."""
-    m = u.shape[0]
-    g1 = fixed_vectors(m, 1, salt=1)[:, 0]
-    out = np.empty_like(u)
-    for s, e in _clusters(w, tol):
-        if e - s == 1:
-            x = u[:, s]
-            out[:, s] = x if x @ g1 >= 0 else -x
-            continue
-        uc = u[:, s:e]
-        y = uc @ (uc.T @ fixed_vectors(m, e - s, salt=2 + s))
-        q, rr = np.linalg.qr(y)
-        out[:, s:e] = q * np.where(np.diag(rr) < 0, -1.0, 1.0)
-    return out
 
 
 def graph_basis(adjacency: sp.csr_matrix, r: int, kind: str = "umbrella", *,
@@ -188,7 +112,7 @@ def graph_basis(adjacency: sp.csr_matrix, r: int, kind: str = "umbrella", *,
     dense = n <= dense_max
     k = min(n, r + _PAD)
     while True:
-        w, u = _smallest(mat, k, dense)
+        w, u = smallest(mat, k, dense)
         end = r
         if extend_clusters:
             while end < len(w) and w[end] - w[end - 1] <= tol:
@@ -197,7 +121,7 @@ def graph_basis(adjacency: sp.csr_matrix, r: int, kind: str = "umbrella", *,
             break
         k = min(n, 2 * k)  # the cluster runs past what we computed: compute more
     w, u = w[:end], u[:, :end]
-    u = _canonical(u, w, tol)
+    u = canonical(u, w, tol)
     if kind == "umbrella":
         return SpectralBasis(values=-w, vectors=u / np.sqrt(d)[:, None], kind=kind)
     return SpectralBasis(values=w, vectors=u, kind=kind)

@@ -13,10 +13,9 @@ eigenvectors ‖b_i‖² = 1 in the thesis's μ_k (SPEC resolution (b)).
 from __future__ import annotations
 
 import numpy as np
-import scipy.linalg
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
+from .._eigen import largest_values
 from ..geometry import cotangents_of_corners
 
 __all__ = ["cotangent_parts", "symmetric_laplace_beltrami",
@@ -88,9 +87,4 @@ def laplace_beltrami_eigenvalues(vertices: np.ndarray, faces: np.ndarray, r: int
     r = int(min(r, n))
     if r <= 0:
         return np.zeros(0)
-    if n <= dense_max or 4 * r >= n:
-        vals = scipy.linalg.eigh(s.toarray(), eigvals_only=True, subset_by_index=[n - r, n - 1])
-    else:
-        v0 = np.random.default_rng(0).standard_normal(n)
-        vals = spla.eigsh(s, k=r, which="LA", v0=v0, return_eigenvectors=False)
-    return np.sort(vals)[::-1]
+    return largest_values(s, r, dense=n <= dense_max or 4 * r >= n)[::-1]

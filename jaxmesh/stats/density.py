@@ -130,12 +130,13 @@ def largest_eigenvalue(mat, bound: float) -> float:
     import scipy.linalg
     import scipy.sparse.linalg as spla
 
+    from .._eigen import start_vector
+
     n = mat.shape[0]
     if n < 64:
         return float(min(scipy.linalg.eigvalsh(mat.toarray())[-1], bound))
     try:
-        top = spla.eigsh(mat, k=1, which="LA", tol=1e-8, v0=np.random.default_rng(0).standard_normal(n),
-                         return_eigenvectors=False)
+        top = spla.eigsh(mat, k=1, which="LA", tol=1e-8, v0=start_vector(n), return_eigenvectors=False)
     except spla.ArpackNoConvergence:
         return bound
     return float(min(top[0], bound))

@@ -6,8 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.linalg
-import scipy.sparse.linalg as spla
 
+from .._eigen import largest_values, smallest_values
 from ..mesh import Mesh
 from ._graph import single
 from .density import density_quantiles, laplacian_of_kind, spectral_density
@@ -52,9 +52,5 @@ def laplacian_spectrum(mesh: Mesh, kind: str = "combinatorial", k: int | None = 
         ranks = np.linspace(0.0, 1.0, QUANTILE_POINTS)
         return ranks, density_quantiles(spectral_density(mesh, kind), ranks)
     k = min(k, (n - 1) // 2)
-    # a fixed (seeded) start vector: reproducible; not the constant vector, which L maps to 0
-    v0 = np.random.default_rng(0).standard_normal(n)
-    low = spla.eigsh(mat, k=k, sigma=-1e-3, which="LM", v0=v0, return_eigenvectors=False)
-    high = spla.eigsh(mat, k=k, which="LA", v0=v0, return_eigenvectors=False)
-    vals = np.r_[np.sort(low), np.sort(high)]
+    vals = np.r_[smallest_values(mat, k, sigma=-1e-3), largest_values(mat, k, dense=False)]
     return np.r_[rank[:k], rank[n - k:]], vals
