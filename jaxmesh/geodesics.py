@@ -163,10 +163,12 @@ def _checked(run, mesh: Mesh):
                          "(degenerate or extreme geometry: faces without area, or coordinates far apart in "
                          "scale)") from None
     if not isinstance(lost, jax.core.Tracer) and bool(jnp.any(lost)):
+        fix = ("use float64: jax.config.update('jax_enable_x64', True) and jaxmesh.load(..., dtype='float64')"
+               if mesh.dtype != jnp.float64 else "pass a larger t (the flow reaches about 700·√t; distances get "
+               "smoother)")
         raise ValueError(f"heat_distances: the heat flow underflows in {mesh.dtype} on this mesh (it decays by "
-                         "exp(−d/ℓ̄) and reaches 0 before the farthest vertex of the source's component), so the "
-                         "distances there would be wrong; use float64: jax.config.update('jax_enable_x64', True) "
-                         "and jaxmesh.load(..., dtype='float64')")
+                         "exp(−d/√t) and reaches 0 before the farthest vertex of the source's component), so the "
+                         f"distances there would be wrong; {fix}")
     return distances
 
 

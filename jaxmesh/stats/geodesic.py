@@ -146,6 +146,8 @@ def _heat_blocks(mesh: MeshOrView, sources: np.ndarray, t, block: int):
         base = base.with_vertices(jnp.asarray(base.vertices, jnp.float64))
     tri = intrinsic_delaunay(base)
     _, labels = connected_components(base)          # reachable: the source's component (labels, not a Dijkstra)
+    if t is None and len(sources):
+        t = _reaching_time(base, tri, int(sources[0]), block)
     for lo in range(0, len(sources), block):
         part = sources[lo:lo + block]
         if len(part) < block and lo:                  # the last block padded: one compiled program
@@ -155,6 +157,28 @@ def _heat_blocks(mesh: MeshOrView, sources: np.ndarray, t, block: int):
         phi = np.array(heat_distances(base, padded, t, block=block, triangulation=tri), np.float64)[:len(part)]
         phi[labels[part][:, None] != labels[None, :]] = np.inf
         yield part, phi
+
+
+def _reaching_time(mesh, tri, source: int, block: int):
+    """None (the default t = ℓ̄²) when the heat flow from the vertex farthest in hops from
+    ``source`` reaches all of its component, else the least 4^j ℓ̄² (j ≤ 8) at which it does:
+    the flow decays like exp(−d/√t) and underflows past about 700√t in float64, so on a mesh
+    that spans more than that (a 556k-vertex scan) the default t cannot reach across it.  A
+    larger t gives smoother, slightly longer distances (Crane et al. 2013, §3.2)."""
+    from ..geometry import mean_edge_length
+
+    hops = csgraph.dijkstra(jsparse.adjacency_matrix(mesh), directed=False, indices=source, unweighted=True)
+    probe = np.full(block, int(np.argmax(np.where(np.isfinite(hops), hops, -1))))
+    ell2 = float(mean_edge_length(mesh)) ** 2
+    for j in range(9):
+        t = None if j == 0 else 4.0 ** j * ell2
+        try:
+            heat_distances(mesh, probe, t, block=block, triangulation=tri)
+            return t
+        except ValueError as err:
+            if "underflows" not in str(err) or mesh.dtype != np.float64:
+                raise
+    raise ValueError("heat_distances: the heat flow underflows even at t = 65 536 ℓ̄²; use method='edges'")
 
 
 class DistanceHistogram(NamedTuple):
