@@ -160,25 +160,30 @@ def _heat_blocks(mesh: MeshOrView, sources: np.ndarray, t, block: int):
 
 
 def _reaching_time(mesh, tri, source: int, block: int):
-    """None (the default t = ℓ̄²) when the heat flow from the vertex farthest in hops from
-    ``source`` reaches all of its component, else the least 4^j ℓ̄² (j ≤ 8) at which it does:
-    the flow decays like exp(−d/√t) and underflows past about 700√t in float64, so on a mesh
-    that spans more than that (a 556k-vertex scan) the default t cannot reach across it.  A
-    larger t gives smoother, slightly longer distances (Crane et al. 2013, §3.2)."""
+    """None (the default t = ℓ̄²) when the heat flow from the ends of the mesh's longest hop
+    paths reaches all of their component, else 2 · 4^j ℓ̄² for the least j ≤ 8 at which it does:
+    the flow decays like exp(−d/√t) and underflows in float64 a few hundred ℓ̄ from a source at
+    t = ℓ̄², so on a mesh that spans more (a 556k-vertex scan) the default cannot reach across it.
+    The probes are a double sweep of breadth-first searches from ``source`` (each the vertex
+    farthest in hops from the last: the ends of a diameter, nearly); the factor 2 is a margin for
+    sources a little farther out.  A larger t gives smoother distances (Crane et al. 2013, §3.2)."""
     from ..geometry import mean_edge_length
 
-    hops = csgraph.dijkstra(jsparse.adjacency_matrix(mesh), directed=False, indices=source, unweighted=True)
-    probe = np.full(block, int(np.argmax(np.where(np.isfinite(hops), hops, -1))))
+    adjacency, probes = jsparse.adjacency_matrix(mesh), []
+    for _ in range(block):
+        hops = csgraph.dijkstra(adjacency, directed=False, indices=source, unweighted=True)
+        source = int(np.argmax(np.where(np.isfinite(hops), hops, -1)))
+        probes.append(source)
     ell2 = float(mean_edge_length(mesh)) ** 2
     for j in range(9):
-        t = None if j == 0 else 4.0 ** j * ell2
+        t = None if j == 0 else 2.0 * 4.0 ** j * ell2
         try:
-            heat_distances(mesh, probe, t, block=block, triangulation=tri)
+            heat_distances(mesh, np.asarray(probes), t, block=block, triangulation=tri)
             return t
         except ValueError as err:
             if "underflows" not in str(err) or mesh.dtype != np.float64:
                 raise
-    raise ValueError("heat_distances: the heat flow underflows even at t = 65 536 ℓ̄²; use method='edges'")
+    raise ValueError("heat_distances: the heat flow underflows even at t = 2 · 4⁸ ℓ̄²; use method='edges'")
 
 
 class DistanceHistogram(NamedTuple):
