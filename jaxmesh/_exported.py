@@ -155,7 +155,7 @@ class _StoredJit:
 
     def _program(self, folder: Path, statics: tuple, tree, specs: tuple, memo: tuple):
         """The program for ``memo`` (statics, tree, avals, x64): from the store, else exported and stored."""
-        platform = jax.default_backend()
+        platform = jax.export.default_export_platform()     # "cuda", where jax.default_backend() says "gpu"
         key = repr((self._fun.__module__, self._fun.__qualname__, memo, platform, _code_digest()))
         path = folder / f"{hashlib.sha256(key.encode()).hexdigest()}{_SUFFIX}"
         exported = _read(path)
