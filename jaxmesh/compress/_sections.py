@@ -15,6 +15,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from ..graph import adjacency_from_faces
 from . import basis as _basis
 from . import connectivity as _conn
 from . import patches as _patches
@@ -117,7 +118,7 @@ def _decode_connectivity(dec, data: bytes) -> None:
     if len(faces) != dec.nf or (faces.size and faces.max() + 1 != n):
         raise CodecError("connectivity does not match the header's counts (corrupt file)")
     dec.faces = faces
-    dec.adjacency = _basis.adjacency_from_faces(faces, n)
+    dec.adjacency = adjacency_from_faces(faces, n)
 
 
 def _encode_labels(enc) -> bytes:

@@ -41,17 +41,13 @@ import numpy as np
 import scipy.sparse as sp
 
 from .._eigen import canonical, smallest
-from .._eigen import fixed_vectors as fixed_vectors
-from ..graph import adjacency_from_faces
 
 __all__ = [
     "SpectralBasis",
     "KINDS",
     "CLUSTER_RTOL",
-    "fixed_vectors",
     "graph_basis",
     "spectral_basis",
-    "adjacency_from_faces",
 ]
 
 KINDS = ("umbrella", "laplacian")

@@ -53,6 +53,8 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from .._eigen import fixed_vectors
+from ..graph import adjacency_from_faces
 from ..mesh import Mesh
 from ..metrics import rms_vertex_error
 from ..transforms import far_vertices
@@ -79,7 +81,7 @@ _HEAD_V1 = struct.Struct(f"<8sHHIIIBdd3d{len(SECTIONS)}I")
 
 
 def _check_sums(vertices: np.ndarray) -> np.ndarray:
-    g = _basis.fixed_vectors(len(vertices), 1, salt=99)[:, 0]
+    g = fixed_vectors(len(vertices), 1, salt=99)[:, 0]
     return g @ vertices
 
 
@@ -193,7 +195,7 @@ def compress(mesh: Mesh, keep: float = 0.1, bits: int = 12, *, basis: str = "lap
     order = code.order
     faces_d = code.faces
     vd = v[order]
-    adjacency = _basis.adjacency_from_faces(faces_d, n)
+    adjacency = adjacency_from_faces(faces_d, n)
     labels = _patches.partition(adjacency, patch_size)
     bases = _patch_bases(adjacency, labels, float(keep), basis, dense_max)
     extent = float((v.max(0) - v.min(0)).max())

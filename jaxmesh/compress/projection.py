@@ -14,6 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float, Int
 
+from ..graph import adjacency_from_faces
 from ..mesh import Mesh
 from . import basis as _basis
 
@@ -60,7 +61,7 @@ def project_orthonormal(basis: Float[Array, "V r"], x: Float[Array, "*batch V 3"
 
 
 def _host_basis(faces: np.ndarray, num_vertices: int, r: int, kind: str, dtype) -> np.ndarray:
-    adj = _basis.adjacency_from_faces(np.asarray(faces), num_vertices)
+    adj = adjacency_from_faces(np.asarray(faces), num_vertices)
     b = _basis.graph_basis(adj, r, kind, extend_clusters=False)
     return np.asarray(b.vectors, dtype=dtype)
 
