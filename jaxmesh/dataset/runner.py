@@ -2,7 +2,8 @@
 shape, reads ahead and writes behind, a JSON-lines report, resumable, with
 failures isolated.
 
-Planning (files, sizes, buckets): :mod:`.plan`.
+Planning (files, sizes, buckets): :mod:`.plan`; the padded batches and their
+programs: :mod:`._batched`.
 
 **Runs.**  Every mesh is denoised in its own unit frame (:func:`~jaxmesh.
 transforms.unit_frame`, as the CLI does), with one method and one parameter
@@ -22,36 +23,25 @@ than their headers said gets the next ladder size (one more compile).
 
 from __future__ import annotations
 
-import concurrent.futures
 import dataclasses
 import functools
 import time
 from pathlib import Path
+from typing import Any
 from collections.abc import Callable, Sequence
-from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 
-from ..batch import batch_spec, pad_batch
 from ..compiler import release_compiled_programs
-from ..mesh import Mesh, to_device
+from ..mesh import Mesh
 from . import supervision
+from ._batched import Outcome, Tally, pad_group, precompile, run_batch, tuned_names, tuned_values
 from .streams import Report, Writer, read_ahead
 from .plan import (LADDER_RATIO, LADDER_START, MESH_SUFFIXES, Batch, default_batch_size, output_pairs, peek_sizes,
                    plan_batches, rung)
 
 __all__ = ["DatasetSummary", "denoise_files"]
-
-
-class _Outcome(NamedTuple):
-    """One input's fate: the denoised ``mesh`` (with the ``params`` it was tuned to, if
-    tuned), or the ``error`` that stopped it (unreadable, invalid, diverged)."""
-
-    mesh: Mesh | None = None
-    params: dict | None = None
-    error: BaseException | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -73,29 +63,6 @@ class DatasetSummary:
                 "padding_waste": self.waste, "seconds": self.seconds}
 
 
-@functools.partial(jax.jit, static_argnames=("method", "statics"))
-def _run_padded(mesh: Mesh, continuous: dict, method: str, statics: tuple):
-    """The method on every mesh of a padded batch, each in its own unit frame
-    (:func:`~jaxmesh.denoise.framed.framed_run`): (vertices (B, V, 3), diverged (B,))."""
-    from ..denoise.framed import framed_run
-
-    def one(m):
-        out, bad = framed_run(m, method, **continuous, **dict(statics))
-        return out.vertices, bad
-
-    return jax.vmap(one)(mesh)
-
-
-def _tuned(params: dict) -> list[str]:
-    """The parameters given as "auto": tuned blind, per mesh (SURE, :func:`~jaxmesh.tune.tune_batch`)."""
-    return sorted(k for k, v in params.items() if isinstance(v, str) and v == "auto")
-
-
-def _tuned_values(params: dict, tuned: dict) -> dict:
-    """The parameters as run: the fixed ones and each tuned one's value."""
-    return {**{k: v for k, v in params.items() if k not in tuned}, **{k: float(v) for k, v in tuned.items()}}
-
-
 def _check(method: str, params: dict, suffix: str | None) -> str:
     """The method's registry name, every parameter checked before any file is read."""
     from ..denoise import METHODS, as_method
@@ -107,11 +74,11 @@ def _check(method: str, params: dict, suffix: str | None) -> str:
         m = as_method(method)
         if METHODS.get(m.name) is not m:
             raise ValueError("denoise_files takes a registered method name (or 'auto')")
-        for k in _tuned(params):
+        for k in tuned_names(params):
             if k not in m.params or m.params[k].kind != "continuous":
                 raise ValueError(f"{k}='auto': only continuous parameters of {m.name} can be tuned "
                                  f"({', '.join(n for n, q in m.params.items() if q.kind == 'continuous')})")
-        m.resolve(**{k: v for k, v in params.items() if k not in _tuned(params)})
+        m.resolve(**{k: v for k, v in params.items() if k not in tuned_names(params)})
         method = m.name
     if suffix is not None and suffix.lower() not in MESH_SUFFIXES:
         raise ValueError(f"suffix must be one of {MESH_SUFFIXES}, got {suffix!r}")
@@ -147,112 +114,30 @@ def _read_sizes(items: list[tuple[Path, Path]], load: Callable, records: list) -
     return sizes
 
 
-@dataclasses.dataclass
-class _Tally:
-    programs: set = dataclasses.field(default_factory=set)
-    real: int = 0
-    padded: int = 0
-
-
-@dataclasses.dataclass(frozen=True)
-class _Padded:
-    """A batch's readable meshes padded to their shape (built on the reader thread)."""
-
-    good: list
-    shape: tuple
-    padded: Any
-
-
-def _pad_group(batch: Batch, meshes: list, ladder: float) -> _Padded | None:
-    """The readable meshes of ``batch`` (filled to the planned batch size with
-    copies of the first) padded to the planned shape, or the next ladder size
-    where a mesh outgrew its header's estimate; None when none could be read."""
-    good = [(k, mesh) for k, mesh in zip(batch.items, meshes) if isinstance(mesh, Mesh)]
-    if not good:
-        return None
-    group = [mesh for _, mesh in good]
-    group += [group[0]] * (batch.fill + len(batch.items) - len(good))
-    need = (max(m.num_vertices for m in group) + 1, max(m.num_faces for m in group),
-            max(m.num_edges for m in group) + 1)     # the plan's sizes were estimates from the headers
-    shape = tuple(s if s >= n else rung(n, ladder) for s, n in zip(batch.shape, need))
-    return _Padded(good, shape, pad_batch(group, shape))
-
-
-def _run_batch(batch: Batch, meshes: list, prepared: _Padded | None, method: str, params: dict, tally: _Tally,
-               compiled: dict) -> dict:
-    """{item: its :class:`_Outcome`} for one padded batch (the reader gives a mesh or the exception)."""
-    results = {k: _Outcome(error=mesh) for k, mesh in zip(batch.items, meshes) if not isinstance(mesh, Mesh)}
-    if prepared is None:
-        return results
-    good, shape, pb = prepared.good, prepared.shape, prepared.padded
-    tally.programs.add((shape, pb.mesh.vertices.shape[0]))
-    names = _tuned(params)
-    if names:
-        from ..tune import tune_batch
-
-        res, outs = tune_batch(pb, method=method, names=names, **{k: params[k] for k in params if k not in names})
-        for j, (k, mesh) in enumerate(good):
-            values = _tuned_values(params, {n: res.params[n][j] for n in names})
-            ok = bool(np.all(np.isfinite(np.asarray(outs[j].vertices))))
-            results[k] = (_Outcome(mesh.with_vertices(outs[j].vertices), values) if ok else
-                          _Outcome(error=FloatingPointError(f"{method} tuned to a non-finite result ({values})")))
-    else:
-        from ..denoise import METHODS
-
-        cont, statics = METHODS[method].split(**params)
-        ahead = compiled.get((shape, pb.mesh.vertices.shape[0]))
-        x, bad = ahead.result()(pb.mesh, cont) if ahead is not None else _run_padded(pb.mesh, cont, method, statics)
-        x, bad = np.asarray(x), np.asarray(bad)     # cut on the host: only the positions come back
-        for j, (k, mesh) in enumerate(good):
-            results[k] = (_Outcome(error=FloatingPointError(f"{method} diverged on this mesh with {params}")) if bad[j]
-                          else _Outcome(mesh.with_vertices(to_device(x[j, :mesh.num_vertices]))))
-    tally.real += sum(mesh.num_vertices for _, mesh in good)
-    tally.padded += shape[0] * pb.mesh.vertices.shape[0]
-    return results
-
-
-def _precompile(plan: list[Batch], method: str, params: dict, dtype, workers: int = 2) -> dict:
-    """Compile every planned (shape, batch size) on ``workers`` threads, ahead of
-    the stream (XLA compiles without the GIL, so this overlaps reading):
-    {(shape, count): future of the compiled program}."""
-    from ..denoise import METHODS
-
-    cont, statics = METHODS[method].split(**params)
-    pool = concurrent.futures.ThreadPoolExecutor(workers, thread_name_prefix="jaxmesh-compile")
-    jobs = {}
-    for b in plan:
-        key = (b.shape, len(b.items) + b.fill)
-        if key not in jobs:
-            jobs[key] = pool.submit(lambda k=key: _run_padded.lower(batch_spec(k[0], k[1], dtype), cont, method=method,
-                                                                   statics=statics).compile())
-    pool.shutdown(wait=False)
-    return jobs
-
-
-def _run_single(mesh, method: str, params: dict, record: dict) -> _Outcome:
+def _run_single(mesh, method: str, params: dict, record: dict) -> Outcome:
     """One mesh by itself (auto, or a method with auxiliary inputs; the reader gives a mesh or the exception)."""
     from ..denoise import denoise_in_unit_frame
 
     if not isinstance(mesh, Mesh):
-        return _Outcome(error=mesh)
+        return Outcome(error=mesh)
     try:
-        names = _tuned(params) if method != "auto" else []
+        names = tuned_names(params) if method != "auto" else []
         if names:
             from ..tune import tune
 
             r = tune(mesh, None, method, names=names, **{k: params[k] for k in params if k not in names})
-            return _Outcome(r.mesh, _tuned_values(params, {n: r.params[n] for n in names}))
+            return Outcome(r.mesh, tuned_values(params, {n: r.params[n] for n in names}))
         if method != "auto":
-            return _Outcome(denoise_in_unit_frame(mesh, method, **params))
+            return Outcome(denoise_in_unit_frame(mesh, method, **params))
         from ..tune import choose_denoiser
 
         choice = choose_denoiser(mesh)
         record.update(chosen=choice.method, params=choice.params)
         if choice.method == "blend":
             record["components"] = [{"method": m, "params": p, "weight": w} for m, p, w in choice.components]
-        return _Outcome(choice.mesh)
+        return Outcome(choice.mesh)
     except (ValueError, FloatingPointError) as err:
-        return _Outcome(error=err)
+        return Outcome(error=err)
 
 
 def denoise_files(inputs: Sequence[str | Path], out_dir: str | Path, method: str = "taubin",
@@ -301,11 +186,11 @@ def denoise_files(inputs: Sequence[str | Path], out_dir: str | Path, method: str
     index, count = share if share is not None else (jax.process_index(), jax.process_count())
     if not 0 <= index < count:
         raise ValueError(f"share {share}: the index must be in [0, count)")
-    folder = supervision.check(reference, tune_on, _tuned(params), method != "auto" and bool(METHODS[method].aux))
+    folder = supervision.check(reference, tune_on, tuned_names(params), method != "auto" and bool(METHODS[method].aux))
     log = Report(report)                      # refused here, before any work, if it cannot be written
     items, records = _collect(inputs, out_dir, suffix, overwrite, method, index, count)
     if tune_on:
-        params, training = supervision.tune_on_subset(inputs, tune_on, method, params, _tuned(params), folder, load)
+        params, training = supervision.tune_on_subset(inputs, tune_on, method, params, tuned_names(params), folder, load)
         records = [{**rec, "tuned_on": training} for rec in records]
     out_dir.mkdir(parents=True, exist_ok=True)
     todo = [k for k, rec in enumerate(records) if "status" not in rec]
@@ -316,14 +201,14 @@ def denoise_files(inputs: Sequence[str | Path], out_dir: str | Path, method: str
             log.write(rec)
     batched = method != "auto" and not METHODS[method].aux
     plan = _plan(sizes, todo, batch_size, ladder) if batched else [Batch((k,), 0, (0, 0, 0)) for k in todo]
-    ahead = batched and not _tuned(params)
-    compiled = _precompile(plan, method, params, jnp.result_type(float)) if ahead else {}
-    tally, writer, finished = _Tally(), Writer(_save_keeping, overwrite, log), 0
+    ahead = batched and not tuned_names(params)
+    compiled = precompile(plan, method, params, jnp.result_type(float)) if ahead else {}
+    tally, writer, finished = Tally(), Writer(_save_keeping, overwrite, log), 0
     try:
-        prepare = functools.partial(_pad_group, ladder=ladder) if batched else None
+        prepare = functools.partial(pad_group, ladder=ladder) if batched else None
         for batch, meshes, prepared in read_ahead(plan, items, load, prepare):
             t0 = time.perf_counter()
-            results = (_run_batch(batch, meshes, prepared, method, params, tally, compiled) if batched
+            results = (run_batch(batch, meshes, prepared, method, params, tally, compiled) if batched
                        else {batch.items[0]: _run_single(meshes[0], method, params, records[batch.items[0]])})
             seconds = round((time.perf_counter() - t0) / len(batch.items), 4)
             for k, noisy in zip(batch.items, meshes):
@@ -345,7 +230,7 @@ def _plan(sizes: dict, todo: list[int], batch_size: int | None, ladder: float) -
     return [dataclasses.replace(b, items=tuple(todo[i] for i in b.items)) for b in plan]
 
 
-def _settle(rec: dict, outcome: _Outcome, noisy, item: tuple, params: dict, seconds: float, writer: Writer,
+def _settle(rec: dict, outcome: Outcome, noisy, item: tuple, params: dict, seconds: float, writer: Writer,
             log: Report, folder: Path | None) -> None:
     """Record one input's fate: a result goes to the writer (scored against its
     reference there, when there is a reference folder), a failure to the report."""
@@ -381,7 +266,7 @@ def _save_keeping(mesh: Mesh, item: tuple, overwrite: bool) -> None:
     save(mesh, out, overwrite=overwrite, attributes=keep)
 
 
-def _summary(records: list, tally: _Tally, start: float) -> DatasetSummary:
+def _summary(records: list, tally: Tally, start: float) -> DatasetSummary:
     count = lambda s: sum(r["status"] == s for r in records)   # noqa: E731
     waste = (tally.padded - tally.real) / tally.real if tally.real else 0.0
     return DatasetSummary(count("ok"), count("skipped"), count("failed"), len(tally.programs), waste,
