@@ -27,7 +27,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import statistics
 import subprocess
 import sys
 import tempfile
@@ -37,28 +36,12 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def _timed(fn, repeat: int = 5) -> float:
-    times = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return statistics.median(times)
-
-
 def _bunny(big: bool):
-    import numpy as np
-    import trimesh
-
+    """The shipped bunny (subdivided twice when ``big``), noisy at 0.3ℓ̄."""
     import jaxmesh
+    from bench_denoise import load_mesh
 
-    m = jaxmesh.normalize(jaxmesh.data.load_sample("bunny"))
-    if big:
-        v, f = np.asarray(m.vertices, np.float64), np.asarray(m.faces)
-        for _ in range(2):
-            v, f = trimesh.remesh.subdivide(v, f)
-        m = jaxmesh.Mesh.from_arrays(v.astype(np.float32), f)
-    return jaxmesh.add_noise(m, 0.3, 0)
+    return jaxmesh.add_noise(load_mesh(big), 0.3, 0)
 
 
 def child_flows(count: int) -> dict:
@@ -71,6 +54,7 @@ def child_flows(count: int) -> dict:
     from jaxmesh.denoise.kernel_flow import kernel_diffusion
     from jaxmesh.denoise.laplacian import laplacian_smoothing
     from jaxmesh.denoise.vertex_rings import vertex_rings
+    from bench_denoise import median_time
 
     out = {"platform": jax.devices()[0].platform, "device": jax.devices()[0].device_kind}
     for label, big in (("bunny", False), ("556k", True)):
@@ -80,13 +64,13 @@ def child_flows(count: int) -> dict:
         l10 = jax.jit(lambda m: laplacian_smoothing(m, 0.5, 10))
         jax.block_until_ready(k10(mesh, rings).vertices)
         jax.block_until_ready(l10(mesh).vertices)
-        out[f"kernel flow, {label}, per iteration"] = _timed(lambda: jax.block_until_ready(k10(mesh, rings).vertices)) / 10
-        out[f"umbrella flow, {label}, per iteration"] = _timed(lambda: jax.block_until_ready(l10(mesh).vertices)) / 10
+        out[f"kernel flow, {label}, per iteration"] = median_time(lambda: jax.block_until_ready(k10(mesh, rings).vertices), 5) / 10
+        out[f"umbrella flow, {label}, per iteration"] = median_time(lambda: jax.block_until_ready(l10(mesh).vertices), 5) / 10
     mesh = _bunny(False)
     aux = METHODS["guided_normal"].prepare(mesh)
     guided = jax.jit(lambda x: denoise(mesh.with_vertices(x), "guided_normal", **aux).vertices)
     jax.block_until_ready(guided(mesh.vertices))
-    out["guided filter, bunny"] = _timed(lambda: jax.block_until_ready(guided(mesh.vertices)), 3)
+    out["guided filter, bunny"] = median_time(lambda: jax.block_until_ready(guided(mesh.vertices)), 3)
     with tempfile.TemporaryDirectory() as tmp:
         samples = [jaxmesh.data.load_sample(name) for name in ("bunny", "spot")]
         paths = []
