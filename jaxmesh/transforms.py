@@ -9,7 +9,7 @@ from ._private import lift
 from .mesh import Mesh
 
 __all__ = ["normalize", "bounding_box_center", "unit_frame", "to_frame", "from_frame", "far_mask", "far_vertices",
-           "FAR_RATIO"]
+           "FAR_RATIO", "FAR_SAMPLE"]
 
 #: a used vertex farther than this many times the median distance from the median position is far
 FAR_RATIO = 1e4
@@ -140,8 +140,8 @@ def normalize(mesh: Mesh, *, return_transform: bool = False):
 
 def far_vertices(mesh: Mesh, ratio: float = FAR_RATIO) -> np.ndarray:
     """The indices of the used vertices far from the rest (:func:`far_mask`, computed on the
-    host): a corrupt coordinate, which :func:`unit_frame` leaves out of the frame and the command line
-    names in a warning.
+    host): a corrupt coordinate, which :func:`unit_frame` leaves out of the frame and the
+    command line names in a warning.
 
     Arguments:
         mesh: a single mesh.
