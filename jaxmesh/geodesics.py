@@ -49,7 +49,7 @@ from .linalg import sparse_solve
 from .mesh import Mesh
 from .operators import cotangent_weights
 
-__all__ = ["heat_distances", "BOUNDARY_CONDITIONS", "boundary_vertices"]
+__all__ = ["heat_distances", "heat_components", "BOUNDARY_CONDITIONS", "boundary_vertices"]
 
 BOUNDARY_CONDITIONS = ("average", "neumann", "dirichlet")
 
@@ -73,7 +73,7 @@ def heat_distances(
     mesh: Mesh, sources, t: float | Array | None = None, *,
     boundary: Literal["average", "neumann", "dirichlet"] = "average", intrinsic: bool = True,
     triangulation: IntrinsicTriangulation | None = None, block: int = 64,
-    backend: Literal["auto", "cholesky", "lu"] = "auto",
+    backend: Literal["auto", "cholesky", "lu"] = "auto", components: Int[Array, " V"] | None = None,
 ) -> Float[Array, "S V"]:
     """Heat-method geodesic distances (S, V) from ``sources`` (module docstring),
     differentiable in ``mesh.vertices`` and ``t``; jittable given a ``triangulation``.
@@ -92,6 +92,8 @@ def heat_distances(
             which needs concrete vertices: pass it to call this under ``jit`` or ``grad``).
         block: sources solved together (memory O(F · block)).
         backend: the sparse solver, as :func:`jaxmesh.linalg.sparse_solve`.
+        components: :func:`heat_components` of ``mesh`` (default: computed; a caller that calls
+            again and again on one mesh passes them once computed).
 
     Returns:
         Distances, (S, V), in the mesh's length units."""
@@ -119,7 +121,7 @@ def heat_distances(
     arrays = None if not intrinsic else tuple(jnp.asarray(z) for z in (
         triangulation.faces, triangulation.face_edges, triangulation.flips, triangulation.pairs,
         triangulation.edge_pair))
-    labels = _components(mesh)
+    labels = heat_components(mesh) if components is None else jnp.asarray(components)
     count = sources.shape[0]
     if count == 0:
         return jnp.zeros((0, mesh.num_vertices), mesh.dtype)
@@ -134,11 +136,17 @@ def heat_distances(
     return jnp.concatenate(out, axis=0)[:count]
 
 
-def _components(mesh: Mesh) -> Int[Array, " V"]:
+def heat_components(mesh: Mesh) -> Int[Array, " V"]:
     """Each vertex's connected component in the graph of the faces with area (a vertex of degenerate
     faces only is its own), numbered so that the first vertex of each component holds its own index:
     the heat flow reaches exactly the vertices of the source's component (the intrinsic triangulation
-    covers the same surface).  All 0 where the mesh is traced: right for a connected mesh."""
+    covers the same surface).  All 0 where the mesh is traced: right for a connected mesh.
+
+    Arguments:
+        mesh: a single mesh.
+
+    Returns:
+        (V,) int32 labels: each vertex's component, named by its first vertex."""
     if isinstance(mesh.vertices, jax.core.Tracer) or isinstance(mesh.faces, jax.core.Tracer):
         return jnp.zeros(mesh.num_vertices, jnp.int32)
     from scipy.sparse.csgraph import connected_components

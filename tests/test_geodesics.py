@@ -237,3 +237,24 @@ def test_a_mesh_longer_than_the_float64_heat_flow_reaches_gets_a_larger_t_in_the
     short = jaxmesh.Mesh.from_arrays(*grid_arrays(60, 2))
     np.testing.assert_array_equal(heat_geodesics(short, [0, 5]), np.asarray(heat_distances(short, [0, 5],
                                   triangulation=intrinsic_delaunay(short), boundary="average")))
+
+
+def test_component_labels_name_each_component_by_its_first_vertex_and_can_be_passed_in():
+    """heat_components against scipy's components of the faces with area (two boxes and an
+    isolated vertex); distances with the labels passed in equal those computed without."""
+    import trimesh
+    from scipy.sparse.csgraph import connected_components
+
+    from jaxmesh.geodesics import heat_components
+
+    a, b = trimesh.creation.box(), trimesh.creation.box()
+    v = np.vstack([a.vertices, b.vertices + 3.0, [[9.0, 9.0, 9.0]]])
+    f = np.vstack([a.faces, b.faces + len(a.vertices)])
+    mesh = jaxmesh.Mesh.from_arrays(v, f, warn=False)
+    given = heat_components(mesh)
+    labels = np.asarray(given)
+    _, ref = connected_components(jaxmesh.sparse.adjacency_matrix(mesh), directed=False)
+    first = {c: np.flatnonzero(ref == c)[0] for c in np.unique(ref)}
+    np.testing.assert_array_equal(labels, [first[c] for c in ref])
+    src = np.array([0, 9])
+    np.testing.assert_array_equal(heat_distances(mesh, src, components=given), heat_distances(mesh, src))

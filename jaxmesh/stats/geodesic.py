@@ -28,7 +28,7 @@ from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 
 from .. import sparse as jsparse
-from ..geodesics import heat_distances
+from ..geodesics import heat_components, heat_distances
 from ..intrinsic import intrinsic_delaunay
 from ..topology import connected_components
 from ._graph import MeshOrView, single
@@ -146,20 +146,22 @@ def _heat_blocks(mesh: MeshOrView, sources: np.ndarray, t, block: int):
         base = base.with_vertices(jnp.asarray(base.vertices, jnp.float64))
     tri = intrinsic_delaunay(base)
     _, labels = connected_components(base)          # reachable: the source's component (labels, not a Dijkstra)
+    components = heat_components(base)              # once, not once a block
     if t is None and len(sources):
-        t = _reaching_time(base, tri, int(sources[0]), block)
+        t = _reaching_time(base, tri, components, int(sources[0]), block)
     for lo in range(0, len(sources), block):
         part = sources[lo:lo + block]
         if len(part) < block and lo:                  # the last block padded: one compiled program
             padded = np.r_[part, np.full(block - len(part), part[-1])]
         else:
             padded = part
-        phi = np.array(heat_distances(base, padded, t, block=block, triangulation=tri), np.float64)[:len(part)]
+        phi = np.array(heat_distances(base, padded, t, block=block, triangulation=tri, components=components),
+                       np.float64)[:len(part)]
         phi[labels[part][:, None] != labels[None, :]] = np.inf
         yield part, phi
 
 
-def _reaching_time(mesh, tri, source: int, block: int):
+def _reaching_time(mesh, tri, components, source: int, block: int):
     """None (the default t = ℓ̄²) when the heat flow from the ends of the mesh's longest hop
     paths reaches all of their component, else 2 · 4^j ℓ̄² for the least j ≤ 8 at which it does:
     the flow decays like exp(−d/√t) and underflows in float64 a few hundred ℓ̄ from a source at
@@ -178,7 +180,7 @@ def _reaching_time(mesh, tri, source: int, block: int):
     for j in range(9):
         t = None if j == 0 else 2.0 * 4.0 ** j * ell2
         try:
-            heat_distances(mesh, np.asarray(probes), t, block=block, triangulation=tri)
+            heat_distances(mesh, np.asarray(probes), t, block=block, triangulation=tri, components=components)
             return t
         except ValueError as err:
             if "underflows" not in str(err) or mesh.dtype != np.float64:
