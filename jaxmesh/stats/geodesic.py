@@ -30,7 +30,6 @@ from scipy.spatial import cKDTree
 from .. import sparse as jsparse
 from ..geodesics import heat_components, heat_distances
 from ..intrinsic import intrinsic_delaunay
-from ..topology import connected_components
 from ._graph import MeshOrView, single
 
 __all__ = ["sample_sources", "graph_distances", "heat_geodesics", "geodesic_distances", "distance_blocks",
@@ -145,10 +144,11 @@ def _heat_blocks(mesh: MeshOrView, sources: np.ndarray, t, block: int):
     if base.dtype != np.float64 and jax.config.jax_enable_x64:
         base = base.with_vertices(jnp.asarray(base.vertices, jnp.float64))
     tri = intrinsic_delaunay(base)
-    _, labels = connected_components(base)          # reachable: the source's component (labels, not a Dijkstra)
+    adjacency = jsparse.adjacency_matrix(base)      # built once: the components and the reach probe
+    _, labels = csgraph.connected_components(adjacency, directed=False)   # reachable: the source's component
     components = heat_components(base)              # once, not once a block
     if t is None and len(sources):
-        t = _reaching_time(base, tri, components, int(sources[0]), block)
+        t = _reaching_time(base, tri, adjacency, components, int(sources[0]), block)
     for lo in range(0, len(sources), block):
         part = sources[lo:lo + block]
         if len(part) < block and lo:                  # the last block padded: one compiled program
@@ -161,17 +161,17 @@ def _heat_blocks(mesh: MeshOrView, sources: np.ndarray, t, block: int):
         yield part, phi
 
 
-def _reaching_time(mesh, tri, components, source: int, block: int):
+def _reaching_time(mesh, tri, adjacency, components, source: int, block: int):
     """None (the default t = ℓ̄²) when the heat flow from the ends of the mesh's longest hop
     paths reaches all of their component, else 2 · 4^j ℓ̄² for the least j ≤ 8 at which it does:
     the flow decays like exp(−d/√t) and underflows in float64 a few hundred ℓ̄ from a source at
     t = ℓ̄², so on a mesh that spans more (a 556k-vertex scan) the default cannot reach across it.
-    The probes are a double sweep of breadth-first searches from ``source`` (each the vertex
-    farthest in hops from the last: the ends of a diameter, nearly); the factor 2 is a margin for
-    sources a little farther out.  A larger t gives smoother distances (Crane et al. 2013, §3.2)."""
+    The probes are a double sweep of breadth-first searches over ``adjacency`` from ``source``
+    (each the vertex farthest in hops from the last: the ends of a diameter, nearly); the factor
+    2 is a margin for sources a little farther out.  A larger t gives smoother distances (Crane et al. 2013, §3.2)."""
     from ..geometry import mean_edge_length
 
-    adjacency, probes = jsparse.adjacency_matrix(mesh), []
+    probes = []
     for _ in range(block):
         hops = csgraph.dijkstra(adjacency, directed=False, indices=source, unweighted=True)
         source = int(np.argmax(np.where(np.isfinite(hops), hops, -1)))
