@@ -65,8 +65,8 @@ from ._sections import _FALLBACK, _ORDER, _UMBRELLA, SECTION_TABLE, _patch_bases
 from .coefficients import CodecError
 from .rangecoder import RangeCoderError
 
-__all__ = ["MAGIC", "FORMAT_VERSION", "SECTIONS", "MAX_PATCH_SIZE", "CodecError", "Compressed", "auto_patch_size", "compress",
-           "decompress", "inspect"]
+__all__ = ["MAGIC", "FORMAT_VERSION", "SECTIONS", "MAX_PATCH_SIZE", "CodecError", "Compressed", "auto_patch_size",
+           "compress", "decompress", "inspect"]
 
 MAGIC = b"\x89JXM\r\n\x1a\n"
 FORMAT_VERSION = 2
@@ -153,7 +153,8 @@ def _check_arguments(mesh: Mesh, keep, bits, basis, patch_size) -> int:
     far = far_vertices(mesh)
     if far.size:
         raise ValueError(f"vertex {int(far[0])} lies far from the rest ({far.size} such: a corrupt coordinate?): the "
-                         "quantization step, the largest side / 2^bits, would erase every other coordinate; remove it first")
+                         "quantization step, the largest side / 2^bits, would erase every other coordinate; "
+                         "remove it first")
     if patch_size is None:
         patch_size = auto_patch_size(keep)
     if not (isinstance(patch_size, (int, np.integer)) and 16 <= patch_size <= MAX_PATCH_SIZE):

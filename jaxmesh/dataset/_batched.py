@@ -18,7 +18,7 @@ from ..mesh import Mesh, to_device
 from ..transforms import far_vertices
 from .plan import Batch, rung
 
-__all__ = ["Outcome", "Tally", "Padded", "run_padded", "tuned_names", "tuned_values", "pad_group", "run_batch",
+__all__ = ["Outcome", "Tally", "Padded", "run_padded", "tuned_keys", "tuned_values", "pad_group", "run_batch",
            "precompile"]
 
 
@@ -45,7 +45,7 @@ def run_padded(mesh: Mesh, continuous: dict, far, method: str, statics: tuple):
     return jax.vmap(one)(mesh, far)
 
 
-def tuned_names(params: dict) -> list[str]:
+def tuned_keys(params: dict) -> list[str]:
     """The parameters given as "auto": tuned blind, per mesh (SURE, :func:`~jaxmesh.tune.tune_batch`)."""
     return sorted(k for k, v in params.items() if isinstance(v, str) and v == "auto")
 
@@ -91,14 +91,14 @@ def pad_group(batch: Batch, meshes: list, ladder: float) -> Padded | None:
 
 
 def run_batch(batch: Batch, meshes: list, prepared: Padded | None, method: str, params: dict, tally: Tally,
-               compiled: dict) -> dict:
+              compiled: dict) -> dict:
     """{item: its :class:`Outcome`} for one padded batch (the reader gives a mesh or the exception)."""
     results = {k: Outcome(error=mesh) for k, mesh in zip(batch.items, meshes) if not isinstance(mesh, Mesh)}
     if prepared is None:
         return results
     good, shape, pb = prepared.good, prepared.shape, prepared.padded
     tally.programs.add((shape, pb.mesh.vertices.shape[0]))
-    names = tuned_names(params)
+    names = tuned_keys(params)
     if names:
         from ..tune import tune_batch
 

@@ -160,7 +160,8 @@ def output_pairs(inputs: Iterable[str | Path], out_dir: str | Path, suffix: str 
     same = [src for src, out in pairs if out.exists() and src.exists() and out.samefile(src)]
     if same and not overwrite:
         raise ValueError(f"{same[0]}: its output would be the input file itself ({len(same)} of {len(pairs)} "
-                         "inputs); choose another output folder or suffix (overwrite=True, CLI: --force, denoises in place)")
+                         "inputs); choose another output folder or suffix (overwrite=True, CLI: --force, "
+                         "denoises in place)")
     return pairs
 
 

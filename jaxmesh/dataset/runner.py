@@ -36,7 +36,7 @@ import jax.numpy as jnp
 from ..compiler import release_compiled_programs
 from ..mesh import Mesh
 from . import supervision
-from ._batched import Outcome, Tally, pad_group, precompile, run_batch, tuned_names, tuned_values
+from ._batched import Outcome, Tally, pad_group, precompile, run_batch, tuned_keys, tuned_values
 from .streams import Report, Writer, read_ahead
 from .plan import (LADDER_RATIO, LADDER_START, MESH_SUFFIXES, Batch, default_batch_size, output_pairs, peek_sizes,
                    plan_batches, rung)
@@ -74,11 +74,11 @@ def _check(method: str, params: dict, suffix: str | None) -> str:
         m = as_method(method)
         if METHODS.get(m.name) is not m:
             raise ValueError("denoise_files takes a registered method name (or 'auto')")
-        for k in tuned_names(params):
+        for k in tuned_keys(params):
             if k not in m.params or m.params[k].kind != "continuous":
                 raise ValueError(f"{k}='auto': only continuous parameters of {m.name} can be tuned "
                                  f"({', '.join(n for n, q in m.params.items() if q.kind == 'continuous')})")
-        m.resolve(**{k: v for k, v in params.items() if k not in tuned_names(params)})
+        m.resolve(**{k: v for k, v in params.items() if k not in tuned_keys(params)})
         method = m.name
     if suffix is not None and suffix.lower() not in MESH_SUFFIXES:
         raise ValueError(f"suffix must be one of {MESH_SUFFIXES}, got {suffix!r}")
@@ -121,7 +121,7 @@ def _run_single(mesh, method: str, params: dict, record: dict) -> Outcome:
     if not isinstance(mesh, Mesh):
         return Outcome(error=mesh)
     try:
-        names = tuned_names(params) if method != "auto" else []
+        names = tuned_keys(params) if method != "auto" else []
         if names:
             from ..tune import tune
 
@@ -186,11 +186,11 @@ def denoise_files(inputs: Sequence[str | Path], out_dir: str | Path, method: str
     index, count = share if share is not None else (jax.process_index(), jax.process_count())
     if not 0 <= index < count:
         raise ValueError(f"share {share}: the index must be in [0, count)")
-    folder = supervision.check(reference, tune_on, tuned_names(params), method != "auto" and bool(METHODS[method].aux))
+    folder = supervision.check(reference, tune_on, tuned_keys(params), method != "auto" and bool(METHODS[method].aux))
     log = Report(report)                      # refused here, before any work, if it cannot be written
     items, records = _collect(inputs, out_dir, suffix, overwrite, method, index, count)
     if tune_on:
-        params, training = supervision.tune_on_subset(inputs, tune_on, method, params, tuned_names(params), folder, load)
+        params, training = supervision.tune_on_subset(inputs, tune_on, method, params, tuned_keys(params), folder, load)
         records = [{**rec, "tuned_on": training} for rec in records]
     out_dir.mkdir(parents=True, exist_ok=True)
     todo = [k for k, rec in enumerate(records) if "status" not in rec]
@@ -201,7 +201,7 @@ def denoise_files(inputs: Sequence[str | Path], out_dir: str | Path, method: str
             log.write(rec)
     batched = method != "auto" and not METHODS[method].aux
     plan = _plan(sizes, todo, batch_size, ladder) if batched else [Batch((k,), 0, (0, 0, 0)) for k in todo]
-    ahead = batched and not tuned_names(params)
+    ahead = batched and not tuned_keys(params)
     compiled = precompile(plan, method, params, jnp.result_type(float)) if ahead else {}
     tally, writer, finished = Tally(), Writer(_save_keeping, overwrite, log), 0
     try:

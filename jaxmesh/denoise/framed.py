@@ -64,7 +64,8 @@ def denoise_in_unit_frame(mesh: Mesh, method: str | Method, **params) -> Mesh:
     if bool(bad):
         shown = {k: v for k, v in params.items() if k not in m.aux}
         far = () if far is None else far
-        hint = (f"vertex {int(far[0])} lies far from the rest (a corrupt coordinate?) and the method spreads it over "
-                "its neighbours: remove it first" if len(far) else "use a larger lam, fewer iterations or a smaller step")
+        hint = (f"vertex {int(far[0])} lies far from the rest (a corrupt coordinate?) and the method spreads it "
+                "over its neighbours: remove it first" if len(far)
+                else "use a larger lam, fewer iterations or a smaller step")
         raise FloatingPointError(f"{m.name} diverged (non-finite or exploding coordinates) with {shown}; {hint}")
     return out
