@@ -218,6 +218,7 @@ def test_float32_distances_agree_with_float64_or_are_refused_naming_it():
     assert np.isfinite(far).all() and abs(far.max() - np.hypot(160, 2)) < 0.1 * 160
 
 
+@pytest.mark.slow   # 5 s: three heat programs and the probe's larger diffusion times
 def test_a_mesh_longer_than_the_float64_heat_flow_reaches_gets_a_larger_t_in_the_statistics():
     """A strip 1 000 edges long: at t = ℓ̄² the heat flow (exp(−d/√t)) underflows in float64
     before its end, which heat_distances refuses, saying to pass a larger t (it said "use
