@@ -80,9 +80,10 @@ class Report:
 
 class Writer:
     """Writes results on a thread, behind the computation; a write that fails marks
-    its record failed (skipped when the output appeared meanwhile, written by another run); each record goes to the report once written.  An error of the
-    thread itself (the report cannot be appended to, a disk full) stops the report,
-    not the writes, and :meth:`close` raises it."""
+    its record failed (skipped when the output appeared meanwhile, written by another
+    run); each record goes to the report once written.  An error of the thread itself
+    (the report cannot be appended to, a disk full) stops the report, not the writes,
+    and :meth:`close` raises it."""
 
     def __init__(self, save, overwrite: bool, log: Report):
         self._q: queue.Queue = queue.Queue(maxsize=64)
