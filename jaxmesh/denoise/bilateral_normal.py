@@ -67,7 +67,7 @@ def spatial_weights(
 
 def joint_bilateral_normals(
     graph: FaceGraph, normals: Float[Array, "*batch F 3"], guidance: Float[Array, "*batch F 3"],
-    weights: Float[Array, "*batch F K"], sigma_r,
+    weights: Float[Array, "*batch F K"], sigma_r, per_face: bool = False,
 ) -> Float[Array, "*batch F 3"]:
     """normalize( Σ_k weights[f, k] W_r(‖g_f − g_{ring[f,k]}‖) n_{ring[f,k]} ) (module docstring).
 
@@ -76,13 +76,16 @@ def joint_bilateral_normals(
         normals: unit face normals, (*batch, F, 3).
         guidance: the guidance normals g, (*batch, F, 3).
         weights: the spatial weights on the ring slots, (*batch, F, K) (:func:`spatial_weights`).
-        sigma_r: the range kernel's width on normal differences (dimensionless).
+        sigma_r: the range kernel's width on normal differences (dimensionless): one per batch
+            element, (*batch), or with ``per_face`` one per face, (*batch, F).
+        per_face: ``sigma_r`` holds one width per face f (its row's kernel).
 
     Returns:
         The filtered unit normals, (*batch, F, 3)."""
     diff = guidance[..., :, None, :] - guidance[..., graph.ring, :]      # (*b, F, K, 3)
     t2 = jnp.sum(diff * diff, axis=-1)
-    sr = lift(jnp.asarray(sigma_r, normals.dtype)[..., None, None], t2.ndim)
+    sr = jnp.asarray(sigma_r, normals.dtype)
+    sr = lift(sr[..., None] if per_face else sr[..., None, None], t2.ndim)
     w = weights * jnp.exp(-0.5 * t2 / sr ** 2)
     return safe_normalize(jnp.sum(w[..., None] * normals[..., graph.ring, :], axis=-2))
 
