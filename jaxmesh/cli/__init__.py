@@ -40,6 +40,7 @@ COMMANDS = {
     "noise": "add Gaussian or impulsive noise to a mesh",
     "denoise": "denoise a mesh with any registered method",
     "demo": "denoise the shipped bunny and print the errors before and after",
+    "train": "train a learned denoiser on your own clean (and noisy) meshes",
     "stats": "degree, assortativity, clustering, geodesic and spectral statistics (ch.5)",
     "hash": "print a mesh's hash, or compare two meshes (thesis ch.4)",
     "compress": "compress a mesh to a .jxm file (spectral geometry, lossless connectivity; ch.3)",

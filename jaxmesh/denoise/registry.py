@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+import os
 import warnings
 from collections.abc import Callable
 from typing import Any
@@ -45,8 +46,9 @@ __all__ = ["Param", "Method", "METHODS", "as_method", "denoise", "diverged"]
 class Param:
     """A method parameter: ``kind`` is "continuous" (tunable; ``bounds`` is the
     search range, ``log`` whether to search it on a log scale), "int",
-    "choice", or "aux" (auxiliary data such as precomputed topology, made on
-    the host by ``build(mesh)``; see :meth:`Method.prepare`).
+    "choice", "file" (a path read on the host, static under ``jit``), or "aux"
+    (auxiliary data such as precomputed topology, made on the host by
+    ``build(mesh)``; see :meth:`Method.prepare`).
 
     ``domain`` is where a continuous value is valid at all (``bounds`` is only
     where tuning searches): ``(lo, hi)`` with ``closed`` saying which ends are
@@ -122,6 +124,8 @@ class Method:
         for k, p in self.params.items():
             if p.kind == "choice" and full[k] not in p.choices:
                 raise ValueError(f"{self.name}: {k} must be one of {p.choices}, got {full[k]!r}")
+            if p.kind == "file" and not isinstance(full[k], (str, os.PathLike)):
+                raise ValueError(f"{self.name}: {k} must be a file path, got {full[k]!r}")
             if p.kind == "int" and (isinstance(full[k], bool) or not isinstance(full[k], int)
                                     or full[k] < 0):
                 raise ValueError(f"{self.name}: {k} must be a non-negative int, got {full[k]!r}")
@@ -167,6 +171,15 @@ _BOUNDARY = Param("free", "choice", "boundary vertices: 'free' (all neighbours) 
                   choices=BOUNDARY_MODES)
 _GRAPH = Param(None, "aux", "face_graph(mesh), built on the host; pass it to call the method under jit",
                build=face_graph)
+
+
+def _learned(mesh: Mesh, model: "str | os.PathLike" = "default", graph=None) -> Mesh:
+    """:func:`jaxmesh.learn.learned_denoising` with the model in the file ``model`` (read
+    once per file version; "default": the shipped one)."""
+    from ..learn.model import learned_denoising
+    from ..learn.modelfile import default_model
+
+    return learned_denoising(mesh, default_model(None if model == "default" else model), graph)
 
 
 def _taubin_pass_band(p: dict) -> str | None:
@@ -283,6 +296,11 @@ METHODS: dict[str, Method] = {
             "iterations": _it(5, "read-and-fit rounds"),
         }, "refit the vertices read as displaced to the others (impulsive noise)",
             "two-component residual mixture + weighted thin-plate fit"),
+        Method("learned", _learned, {
+            "model": Param("default", "file", "model file from `jaxmesh train` ('default': the shipped model)"),
+            "graph": _GRAPH,
+        }, "learned stack of Taubin, joint bilateral/guided normal passes and vertex updates (no search)",
+            "jaxmesh.learn: unrolled filters, parameters set by two small networks"),
         Method("geometric", geometric_diffusion, {
             "dt": Param(0.3, "continuous", "time step in units of the mean vertex area", (0.01, 100.0), True),
             "rho": Param(1.0, "continuous", "curvature scale of G, in 1/mean edge length", (0.01, 100.0), True),
