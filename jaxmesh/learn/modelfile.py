@@ -110,13 +110,15 @@ def load_model(path: str | os.PathLike, extra: Any = None) -> LearnedDenoiser | 
             raise ValueError(f"{path}: the model file's config is not a jaxmesh model config ({e})") from None
         except ValueError as e:
             raise ValueError(f"{path}: {e}") from None
-        template = init_model(config)
+        with jax.ensure_compile_time_eval():     # concrete arrays when first read under jit
+            template = init_model(config)
         arrays = _arrays(template) + _arrays(extra)
         leaves = _read_leaves(f, arrays, path)
         if f.read(1):
             raise ValueError(f"{path}: data after the last array (not a file this config wrote)")
     k = len(_arrays(template))
-    model = _fill(template, leaves[:k])
+    with jax.ensure_compile_time_eval():
+        model = _fill(template, leaves[:k])
     if extra is None:
         return model
     return model, _fill(extra, leaves[k:]), header.get("meta", {})
