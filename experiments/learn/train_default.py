@@ -15,7 +15,7 @@ held out, and impulsive.  Checkpoints go to ``experiments/results/learn/checkpoi
 Writes jaxmesh/data/learned.jxl, jaxmesh/data/learned.json (training meshes, noise,
 seed, settings, validation history, the step kept (least validation error), the file's
 SHA-256, wall time) and
-experiments/results/learn/validation.png.
+docs/images/learn-validation.png (the validation curve).
 """
 
 from __future__ import annotations
@@ -124,7 +124,7 @@ def main() -> None:
     save_model(args.output, result.model, meta, overwrite=args.force)
     record = {**meta, "model_file": args.output.name, "sha256": file_sha256(args.output)}
     args.output.with_suffix(".json").write_text(json.dumps(record, indent=1) + "\n")
-    write_curve(result.history, RESULTS / "validation.png", overwrite=True)
+    write_curve(result.history, ROOT / "docs" / "images" / "learn-validation.png", overwrite=True)
     checkpoint.unlink(missing_ok=True)
     best = next(r for r in result.history if r["step"] == result.best_step)
     print(f"trained in {seconds / 60:.1f} min: validation {best['validation']:.3f} deg (step {result.best_step}); "
