@@ -231,22 +231,28 @@ class _Factor:
 @contextlib.contextmanager
 def _stdout_to_stderr():
     """File descriptor 1 pointed at 2 for the block: a C library's diagnostics go where
-    diagnostics belong, not into a command's output (``jaxmesh stats --json``)."""
+    diagnostics belong, not into a command's output (``jaxmesh stats --json``).  The
+    descriptors are the process's: one thread at a time redirects them (two overlapping
+    blocks would each save the other's redirection and leave fd 1 on stderr)."""
     import os
     import sys
 
-    try:
-        sys.stdout.flush()
-        saved = os.dup(1)
-    except (OSError, ValueError):          # no usable fd 1 (embedded interpreters): leave it alone
-        yield
-        return
-    try:
-        os.dup2(2, 1)
-        yield
-    finally:
-        os.dup2(saved, 1)
-        os.close(saved)
+    with _redirect_lock:
+        try:
+            sys.stdout.flush()
+            saved = os.dup(1)
+        except (OSError, ValueError):          # no usable fd 1 (embedded interpreters): leave it alone
+            yield
+            return
+        try:
+            os.dup2(2, 1)
+            yield
+        finally:
+            os.dup2(saved, 1)
+            os.close(saved)
+
+
+_redirect_lock = threading.Lock()
 
 
 def _backward_error(matrix: sp.csr_matrix, x: np.ndarray, b: np.ndarray) -> float:
