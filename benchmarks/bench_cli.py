@@ -1,6 +1,6 @@
 """Command-line latency: every ``jaxmesh`` command on a small mesh, cold and warm, in one run.
 
-    .venv/bin/python benchmarks/bench_cli.py [--mesh spot] [--repeat 3] [--commands info,hash]
+    .venv/bin/python benchmarks/bench_cli.py [--mesh spot] [--keep F] [--repeat 3] [--commands info,hash]
 
 Each command runs as a user types it (a fresh process of the installed ``jaxmesh``
 executable), first with an empty compilation cache (``JAXMESH_CACHE_DIR`` a new empty
@@ -8,7 +8,9 @@ folder: "cold"), then ``--repeat`` more times with the cache that run filled ("w
 the median reported).  Two floors are measured the same way: a bare ``python -c pass``
 and ``python -c "import jax"`` (every computing command imports JAX).  Inputs: the
 shared mesh (``../shared/meshes/``, default spot, 2,930 vertices), a noisy copy of it and
-its ``.jxm`` file, made once before the timings.  Not part of the test suite: numbers
+its ``.jxm`` file, made once before the timings; ``--keep F`` first simplifies the mesh to
+the fraction F of its faces (``jaxmesh.hashing.attacks.simplify``: ``--keep 0.615`` makes
+spot a mesh of about 1,800 vertices).  Not part of the test suite: numbers
 depend on the machine; compare the rows of one run.
 """
 
@@ -56,11 +58,27 @@ def seconds(argv: list[str], cache: Path) -> float:
     return took
 
 
+def jaxmesh_module():
+    import jaxmesh
+
+    return jaxmesh
+
+
+def simplified(mesh: Path, keep: float, out: Path) -> Path:
+    """``mesh`` simplified to the fraction ``keep`` of its faces, written to ``out``."""
+    from jaxmesh.hashing.attacks import simplify
+
+    jm = jaxmesh_module()
+    jm.save(simplify(jm.load(mesh), keep), out)
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--mesh", default="spot", help="a mesh of ../shared/meshes (its name without .ply)")
     ap.add_argument("--repeat", type=int, default=3, help="warm runs per command (median)")
     ap.add_argument("--commands", default="", help="comma-separated subset of the rows (default: all)")
+    ap.add_argument("--keep", type=float, default=1.0, help="simplify the mesh to this fraction of its faces first")
     args = ap.parse_args()
     mesh = SHARED / f"{args.mesh}.ply"
     if not mesh.is_file():
@@ -71,6 +89,9 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         setup = tmp / "setup-cache"
+        if args.keep != 1.0:
+            mesh = simplified(mesh, args.keep, tmp / f"{args.mesh}-{args.keep}.ply")
+        vertices = jaxmesh_module().load(mesh).num_vertices
         seconds([jaxmesh, "noise", str(mesh), str(tmp / "noisy.ply"), "--sigma", "0.3"], setup)
         seconds([jaxmesh, "compress", str(mesh), str(tmp / "mesh.jxm")], setup)
         table = {"python -c pass (floor)": [python, "-c", "pass"],
@@ -85,7 +106,7 @@ def main() -> None:
             warm = statistics.median(seconds(argv, cache) for _ in range(args.repeat))
             rows.append((name, cold, warm))
             print(f"{name:32s} cold {cold:6.2f} s   warm {warm:6.2f} s", file=sys.stderr)
-    print(f"\n{args.mesh}: each command a fresh process; warm = median of {args.repeat}\n")
+    print(f"\n{args.mesh} ({vertices} vertices): each command a fresh process; warm = median of {args.repeat}\n")
     print("| command | empty cache | warm cache |")
     print("|---|---|---|")
     for name, cold, warm in rows:

@@ -51,6 +51,10 @@ from .operators import cotangent_weights
 
 __all__ = ["heat_distances", "heat_components", "BOUNDARY_CONDITIONS", "boundary_vertices"]
 
+#: :func:`~jaxmesh.geometry.face_areas` as one compiled program for host callers (eagerly it is a
+#: dozen small programs, each compiled on first use in every process)
+_face_areas = jax.jit(face_areas)
+
 BOUNDARY_CONDITIONS = ("average", "neumann", "dirichlet")
 
 
@@ -107,7 +111,7 @@ def heat_distances(
     if sources.ndim != 1 or not jnp.issubdtype(sources.dtype, jnp.integer):
         raise ValueError(f"sources must be a 1-D array of vertex indices, got shape {sources.shape}")
     if not isinstance(sources, jax.core.Tracer) and sources.size and (
-            int(sources.min()) < 0 or int(sources.max()) >= mesh.num_vertices):
+            int(np.asarray(sources).min()) < 0 or int(np.asarray(sources).max()) >= mesh.num_vertices):
         raise ValueError(f"sources must lie in [0, {mesh.num_vertices}), got {np.asarray(sources)}")
     if intrinsic:
         if triangulation is None:
@@ -153,7 +157,7 @@ def heat_components(mesh: Mesh) -> Int[Array, " V"]:
 
     from .graph import adjacency_from_faces
 
-    f = np.asarray(mesh.faces)[np.asarray(face_areas(mesh)) > 0]
+    f = np.asarray(mesh.faces)[np.asarray(_face_areas(mesh)) > 0]
     labels = connected_components(adjacency_from_faces(f, mesh.num_vertices), directed=False)[1]
     first = np.unique(labels, return_index=True)[1]
     return jnp.asarray(first[labels], jnp.int32)
@@ -170,7 +174,7 @@ def _checked(run, mesh: Mesh):
         raise ValueError("heat_distances: the heat method's linear systems cannot be factored on this mesh "
                          "(degenerate or extreme geometry: faces without area, or coordinates far apart in "
                          "scale)") from None
-    if not isinstance(lost, jax.core.Tracer) and bool(jnp.any(lost)):
+    if not isinstance(lost, jax.core.Tracer) and bool(np.asarray(lost).any()):
         fix = ("use float64: jax.config.update('jax_enable_x64', True) and jaxmesh.load(..., dtype='float64')"
                if mesh.dtype != jnp.float64 else "pass a larger t (the flow reaches about 700·√t; distances get "
                "smoother)")

@@ -9,6 +9,7 @@ shape (V, V); they need a single (unbatched) mesh.
 
 from __future__ import annotations
 
+import jax
 import numpy as np
 import scipy.sparse as sp
 
@@ -28,6 +29,10 @@ __all__ = [
     "cotangent_laplacian_matrix",
     "laplace_beltrami_matrix",
 ]
+
+#: :func:`~jaxmesh.geometry.edge_lengths` as one compiled program (eagerly: several, each
+#: compiled on first use in every process)
+_edge_lengths = jax.jit(edge_lengths)
 
 
 def _single(mesh: Mesh) -> None:
@@ -124,7 +129,7 @@ def edge_length_matrix(mesh: Mesh) -> sp.csr_matrix:
     Returns:
         (V, V) float64 CSR matrix."""
     _single(mesh)
-    lengths = np.asarray(edge_lengths(mesh), dtype=np.float64)
+    lengths = np.asarray(_edge_lengths(mesh), dtype=np.float64)
     return directed_matrix(mesh, lengths[np.asarray(mesh.edge_of)])
 
 

@@ -261,3 +261,33 @@ def test_mesh_statistics_geodesics_are_histograms_of_the_distances():
     ico = trimesh.creation.icosphere(0)                  # 12 vertices: the defaults lower quietly
     small = stats.mesh_statistics(jaxmesh.Mesh.from_arrays(ico.vertices, ico.faces))   # warnings are errors here
     assert small["summary"]["sources"] == 12 < stats.SOURCES
+
+
+@pytest.mark.slow
+def test_mesh_statistics_compiles_few_programs_in_a_fresh_process():
+    """The statistics' host code calls the geometry through one compiled program each, not
+    op by op (every eager op is a program compiled anew in each process: about 50 of them,
+    a second of ``jaxmesh stats``' start, before)."""
+    import subprocess
+    import sys
+
+    code = """
+import logging, jax
+jax.config.update("jax_enable_x64", True)
+jax.config.update("jax_log_compiles", True)
+names = []
+class Count(logging.Handler):
+    def emit(self, record):
+        if record.getMessage().startswith("Finished XLA compilation of "):
+            names.append(record.getMessage().split()[4])
+logger = logging.getLogger("jax"); logger.addHandler(Count()); logger.setLevel(logging.DEBUG); logger.propagate = False
+import trimesh, jaxmesh
+from jaxmesh import stats
+s = trimesh.creation.icosphere(3)
+stats.mesh_statistics(jaxmesh.Mesh.from_arrays(s.vertices, s.faces), sources=12, knn=4)
+print(len(names), sorted(set(names)))
+"""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    count = int(out.stdout.split()[0])
+    assert 3 <= count <= 20, out.stdout

@@ -176,7 +176,7 @@ def _reaching_time(mesh, tri, adjacency, components, source: int, block: int):
         hops = csgraph.dijkstra(adjacency, directed=False, indices=source, unweighted=True)
         source = int(np.argmax(np.where(np.isfinite(hops), hops, -1)))
         probes.append(source)
-    ell2 = float(mean_edge_length(mesh)) ** 2
+    ell2 = float(jax.jit(mean_edge_length)(mesh)) ** 2
     for j in range(9):
         t = None if j == 0 else 2.0 * 4.0 ** j * ell2
         try:
