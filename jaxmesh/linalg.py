@@ -252,7 +252,7 @@ def _stdout_to_stderr():
             os.close(saved)
 
 
-_redirect_lock = threading.Lock()
+_redirect_lock = threading.RLock()   # re-entrant: a nested block restores what the outer one set
 
 
 def _backward_error(matrix: sp.csr_matrix, x: np.ndarray, b: np.ndarray) -> float:
