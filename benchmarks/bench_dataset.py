@@ -12,8 +12,11 @@ isotropic Gaussian noise of 0.2 mean edge lengths; binary PLY.
 **The job**: 10 umbrella (Laplacian) steps, λ = 0.5, on every mesh, read
 from and written to disk:
 
-* *runner*: :func:`jaxmesh.dataset.denoise_files` (size buckets, one compile
-  per bucket shape, read-ahead and write-behind threads);
+* *runner*: :func:`jaxmesh.dataset.denoise_files` with its defaults (the umbrella
+  flow is ``local``, so the meshes run packed into disjoint unions of up to 2^16
+  vertices, one compile per union shape; read-ahead and write-behind threads);
+* *runner-padded*: the same with ``pack=False``: size buckets of padded batches,
+  one compile per bucket shape (the runner's path for methods that are not local);
 * *loop*: for each file ``load`` → :func:`~jaxmesh.denoise.denoise_in_unit_frame`
   (``umbrella_flow``) → ``save``: one compile per distinct mesh size;
 * *runner-previous*: the runner with its former defaults (batches
@@ -126,8 +129,9 @@ def run_variant(name: str, data: Path, out: Path, batch_size: int, ladder: float
         if name.startswith("runner"):
             if name == "runner-previous":      # the former defaults: batches of 16, ladder 2^¼
                 batch_size, ladder = 16, 2 ** 0.25
+            pack = False if name in ("runner-padded", "runner-previous") else None
             s = denoise_files([str(data)], out, "umbrella_flow", {"iterations": ITERATIONS, "lam": LAM},
-                              batch_size=batch_size, ladder=ladder, overwrite=True)
+                              batch_size=batch_size, ladder=ladder, overwrite=True, pack=pack)
             extra |= {"batch_size": batch_size or "default", "ladder": round(ladder, 4),
                       "padding_waste": round(s.waste, 3), "failed": s.failed, "batch_shapes": s.compiles}
         else:
@@ -156,7 +160,7 @@ def main() -> None:
     ap.add_argument("--batch-size", type=int, default=None, help="meshes per call (default: the runner's own)")
     ap.add_argument("--ladder", type=float, default=2 ** 0.5, help="ratio between padded sizes (the runner's default)")
     ap.add_argument("--variants", nargs="*",
-                    default=["runner", "runner-previous", "runner-xla-defaults", "loop", "open3d"])
+                    default=["runner", "runner-padded", "runner-previous", "runner-xla-defaults", "loop", "open3d"])
     ap.add_argument("--repeat", type=int, default=3, help="runs of each fast variant, interleaved (medians)")
     ap.add_argument("--variant", help=argparse.SUPPRESS)
     args = ap.parse_args()
@@ -194,7 +198,7 @@ def main() -> None:
         rates = sorted(r["meshes_per_second"] for r in runs)
         print(f"{name}: median {median[name]:.2f} meshes/s over {len(runs)} run(s) (range {rates[0]}–{rates[-1]})")
     if "runner" in median:
-        for peer in ("runner-previous", "runner-xla-defaults", "loop", "open3d"):
+        for peer in ("runner-padded", "runner-previous", "runner-xla-defaults", "loop", "open3d"):
             if peer in median:
                 print(f"runner / {peer}: {median['runner'] / median[peer]:.2f}x meshes per second (medians)")
 

@@ -1,6 +1,6 @@
 """Batches of different meshes, and sharding a batch over devices.
 
-Two kinds of batch:
+Three kinds of batch:
 
 * **one connectivity, many positions** (noisy copies of one mesh): a
   :class:`~jaxmesh.Mesh` whose ``vertices`` have shape (B, V, 3).  Every
@@ -11,6 +11,10 @@ Two kinds of batch:
   origin, padded edges are self-loops (d, d) and padded faces (d, d, d) on the
   first padded vertex d, so no real vertex, edge or face sees them, and
   every operator leaves them at 0.  :func:`unpad` cuts the results back.
+* **different meshes, packed**: :func:`pack_batch` joins them into one disjoint
+  union (no padding to the largest), padded inertly as above; a method with no
+  quantity over the whole mesh (``Method.local``) runs on it once for all
+  (:func:`jaxmesh.denoise.denoise_packed`), and :func:`unpack` cuts it back.
 
 :func:`shard` lays a batch's leading axis over the local devices with
 ``jax.sharding``; jitted functions then run data-parallel without further
@@ -28,11 +32,12 @@ import jax.numpy as jnp
 import numpy as np
 from jax.sharding import Mesh as DeviceMesh
 from jax.sharding import NamedSharding, PartitionSpec
-from jaxtyping import Array, Bool
+from jaxtyping import Array, Bool, Int
 
 from .mesh import Mesh, to_device
 
-__all__ = ["PaddedBatch", "pad_batch", "batch_spec", "unpad", "shard"]
+__all__ = ["PaddedBatch", "pad_batch", "batch_spec", "unpad", "PackedBatch", "pack_batch", "packed_spec",
+           "unpack", "shard"]
 
 
 class PaddedBatch(NamedTuple):
@@ -46,10 +51,41 @@ class PaddedBatch(NamedTuple):
     vertex_mask: Bool[Array, "B V"]
 
 
+_FIELDS = ("vertices", "faces", "edges", "face_edges", "src", "dst", "edge_of", "degree")
+
+
 def _pad(a: np.ndarray, length: int, fill) -> np.ndarray:
     extra = length - a.shape[0]
     pad = np.broadcast_to(np.asarray(fill, a.dtype), (extra,) + a.shape[1:])
     return np.concatenate([a, pad])
+
+
+def _host(mesh: Mesh) -> dict[str, np.ndarray]:
+    return {k: np.asarray(getattr(mesh, k)) for k in _FIELDS}
+
+
+def _padded(host: dict[str, np.ndarray], nv: int, nf: int, ne: int) -> dict[str, np.ndarray]:
+    """One mesh's host arrays padded inertly (module docstring) to nv vertices, nf faces, ne edges."""
+    d, e = len(host["vertices"]), len(host["edges"])      # first padding vertex / edge
+    lengths = dict(vertices=nv, faces=nf, face_edges=nf, edges=ne, src=2 * ne, dst=2 * ne, edge_of=2 * ne, degree=nv)
+    fills = dict(vertices=0, faces=d, face_edges=e, edges=d, src=d, dst=d, edge_of=e, degree=0)
+    return {k: _pad(host[k], lengths[k], fills[k]) for k in _FIELDS}
+
+
+def _checked(meshes: Sequence, who: str) -> list[Mesh]:
+    """``meshes`` as a list, refused unless they are one or more single meshes of one dtype."""
+    meshes = list(meshes)
+    if not meshes:
+        raise ValueError(f"{who} needs at least one mesh")
+    for k, m in enumerate(meshes):
+        if not isinstance(m, Mesh):
+            raise TypeError(f"meshes[{k}] is a {type(m).__name__}, not a jaxmesh.Mesh")
+        if m.batch_shape:
+            raise ValueError(f"meshes[{k}] is already batched {m.batch_shape}; pass single meshes")
+    dtypes = {m.dtype for m in meshes}
+    if len(dtypes) > 1:
+        raise ValueError(f"meshes have different dtypes {sorted(map(str, dtypes))}; cast with .astype")
+    return meshes
 
 
 def pad_batch(meshes: Sequence[Mesh], pad_to: tuple[int, int, int] | None = None) -> PaddedBatch:
@@ -65,17 +101,7 @@ def pad_batch(meshes: Sequence[Mesh], pad_to: tuple[int, int, int] | None = None
 
     Returns:
         A :class:`PaddedBatch`: the padded mesh with vertices (B, V, 3) and the true sizes."""
-    meshes = list(meshes)
-    if not meshes:
-        raise ValueError("pad_batch needs at least one mesh")
-    for k, m in enumerate(meshes):
-        if not isinstance(m, Mesh):
-            raise TypeError(f"meshes[{k}] is a {type(m).__name__}, not a jaxmesh.Mesh")
-        if m.batch_shape:
-            raise ValueError(f"meshes[{k}] is already batched {m.batch_shape}; pass single meshes")
-    dtypes = {m.dtype for m in meshes}
-    if len(dtypes) > 1:
-        raise ValueError(f"meshes have different dtypes {sorted(map(str, dtypes))}; cast with .astype")
+    meshes = _checked(meshes, "pad_batch")
     nv = max(m.num_vertices for m in meshes) + 1   # at least one padding vertex and edge each
     nf = max(m.num_faces for m in meshes)
     ne = max(m.num_edges for m in meshes) + 1
@@ -85,19 +111,9 @@ def pad_batch(meshes: Sequence[Mesh], pad_to: tuple[int, int, int] | None = None
             raise ValueError(f"pad_to {tuple(pad_to)} is smaller than the batch needs: at least "
                              f"({nv}, {nf}, {ne}) vertices, faces, edges (one padding vertex and edge)")
         nv, nf, ne = want
-    cols = {k: [] for k in ("vertices", "faces", "edges", "face_edges", "src", "dst", "edge_of", "degree")}
-    for m in meshes:
-        d, e = m.num_vertices, m.num_edges      # first padding vertex / edge
-        cols["vertices"].append(_pad(np.asarray(m.vertices), nv, 0))
-        cols["faces"].append(_pad(np.asarray(m.faces), nf, d))
-        cols["face_edges"].append(_pad(np.asarray(m.face_edges), nf, e))
-        cols["edges"].append(_pad(np.asarray(m.edges), ne, d))
-        cols["src"].append(_pad(np.asarray(m.src), 2 * ne, d))
-        cols["dst"].append(_pad(np.asarray(m.dst), 2 * ne, d))
-        cols["edge_of"].append(_pad(np.asarray(m.edge_of), 2 * ne, e))
-        cols["degree"].append(_pad(np.asarray(m.degree), nv, 0))
-    stacked = {k: to_device(np.stack(v)) for k, v in cols.items()}
-    stacked["vertices"] = to_device(np.stack(cols["vertices"]), meshes[0].dtype)
+    cols = [_padded(_host(m), nv, nf, ne) for m in meshes]
+    stacked = {k: to_device(np.stack([c[k] for c in cols])) for k in _FIELDS}
+    stacked["vertices"] = to_device(np.stack([c["vertices"] for c in cols]), meshes[0].dtype)
     sizes = tuple(m.num_vertices for m in meshes)
     mask = to_device(np.arange(nv)[None, :] < np.asarray(sizes)[:, None])
     return PaddedBatch(Mesh(**stacked), sizes, tuple(m.num_faces for m in meshes), mask)
@@ -142,6 +158,114 @@ def unpad(batch: PaddedBatch, result=None) -> list[Mesh]:
         e = int(np.sum(host["edges"][k, :, 0] != host["edges"][k, :, 1]))
         cut = dict(vertices=v, faces=f, edges=e, face_edges=f, src=2 * e, dst=2 * e, edge_of=2 * e, degree=v)
         out.append(Mesh(**{name: to_device(host[name][k, :n]) for name, n in cut.items()}))
+    return out
+
+
+class PackedBatch(NamedTuple):
+    """``mesh``: the meshes' disjoint union, padded (a single mesh, vertices (V, 3));
+    ``segment`` (V,): the mesh each vertex belongs to (padding vertices: the last segment);
+    ``far`` (V,): each mesh's own far vertices (:func:`~jaxmesh.transforms.far_vertices`);
+    ``segments``: the number of segments (at least the meshes plus one, static under ``jit``);
+    ``num_vertices``, ``num_faces``, ``num_edges``: each mesh's true sizes (host ints)."""
+
+    mesh: Mesh
+    segment: Int[Array, " V"]
+    far: Bool[Array, " V"]
+    segments: int
+    num_vertices: tuple[int, ...]
+    num_faces: tuple[int, ...]
+    num_edges: tuple[int, ...]
+
+
+def pack_batch(meshes: Sequence[Mesh], pad_to: tuple[int, int, int] | None = None,
+               segments: int | None = None) -> PackedBatch:
+    """The disjoint union of single meshes of any sizes: mesh k's vertices, faces and
+    edges follow mesh k − 1's, its indices shifted by the counts before it, so the
+    union's topology is the one :meth:`Mesh.from_arrays` builds from the concatenated
+    arrays (edges and directed edges stay sorted).  It is then padded inertly, as
+    :func:`pad_batch` pads (one padding vertex and edge at least).  A method with no
+    reduction over the whole mesh (``Method.local``) run on the union in each mesh's own
+    frame (:func:`jaxmesh.denoise.packed_run`) gives every mesh its own result, with no
+    padding to the largest mesh and one call for all.
+
+    Arguments:
+        meshes: single meshes of any sizes, one dtype.
+        pad_to: (vertices, faces, edges) to pad the union to, so that unions of similar
+            total size share one compiled program (default: the sizes plus one vertex and edge).
+        segments: the number of segments (default: the meshes plus one, for the padding);
+            a fixed value lets unions of different mesh counts share one program.
+
+    Returns:
+        A :class:`PackedBatch`."""
+    from .transforms import far_vertices
+
+    meshes = _checked(meshes, "pack_batch")
+    hosts = [_host(m) for m in meshes]
+    nvs = [len(h["vertices"]) for h in hosts]
+    nes = [len(h["edges"]) for h in hosts]
+    voff = np.cumsum([0] + nvs)[:-1]
+    eoff = np.cumsum([0] + nes)[:-1]
+    shift = dict(faces=voff, edges=voff, src=voff, dst=voff, face_edges=eoff, edge_of=eoff)
+    union = {k: np.concatenate([h[k] + (shift[k][j] if k in shift else 0) for j, h in enumerate(hosts)]).astype(
+        hosts[0][k].dtype) for k in _FIELDS}
+    need = (len(union["vertices"]) + 1, len(union["faces"]), len(union["edges"]) + 1)
+    if pad_to is not None:
+        want = tuple(int(n) for n in pad_to)
+        if len(want) != 3 or any(w < n for w, n in zip(want, need)):
+            raise ValueError(f"pad_to {tuple(pad_to)} is smaller than the union needs: at least {need} "
+                             "vertices, faces, edges (one padding vertex and edge)")
+        need = want
+    count = len(meshes) + 1 if segments is None else int(segments)
+    if count < len(meshes) + 1:
+        raise ValueError(f"segments={segments} is too few for {len(meshes)} meshes and the padding "
+                         f"(at least {len(meshes) + 1})")
+    cols = _padded(union, *need)
+    arrays = to_device({k: cols[k] for k in _FIELDS if k != "vertices"})
+    segment = np.full(need[0], count - 1, np.int32)
+    segment[:sum(nvs)] = np.repeat(np.arange(len(meshes), dtype=np.int32), nvs)
+    far = np.zeros(need[0], bool)
+    for m, start in zip(meshes, voff):
+        far[start + far_vertices(m)] = True
+    mesh = Mesh(vertices=to_device(cols["vertices"], meshes[0].dtype), **arrays)
+    return PackedBatch(mesh, to_device(segment), to_device(far), count, tuple(nvs),
+                       tuple(m.num_faces for m in meshes), tuple(nes))
+
+
+def packed_spec(pad_to: tuple[int, int, int], dtype) -> Mesh:
+    """The abstract mesh (leaves ``jax.ShapeDtypeStruct``) of a :class:`PackedBatch`'s
+    union padded to ``pad_to``, for ahead-of-time lowering; derived from packing one
+    triangle, so it cannot drift from :func:`pack_batch`.
+
+    Arguments:
+        pad_to: (vertices, faces, edges) the union is padded to.
+        dtype: the positions' dtype.
+
+    Returns:
+        A :class:`~jaxmesh.Mesh` whose leaves are ``jax.ShapeDtypeStruct`` (vertices (V, 3))."""
+    tri = Mesh.from_arrays(np.eye(3), np.array([[0, 1, 2]]), dtype=dtype, warn=False)
+    return jax.tree.map(lambda a: jax.ShapeDtypeStruct(a.shape, a.dtype), pack_batch([tri], pad_to=pad_to).mesh)
+
+
+def unpack(packed: PackedBatch, result=None) -> list[Mesh]:
+    """The union's meshes, each cut out with its own indices.  ``result`` (a Mesh, or a
+    vertex array (V, 3)) replaces the positions; without it the input positions are returned.
+
+    Arguments:
+        packed: the packed batch.
+        result: the denoised union or its vertex array (V, 3) (default: the input positions).
+
+    Returns:
+        One single mesh per packed mesh, in order."""
+    x = packed.mesh.vertices if result is None else (
+        result.vertices if isinstance(result, Mesh) else jnp.asarray(result))
+    host = _host(packed.mesh.with_vertices(x))
+    out, v0, f0, e0 = [], 0, 0, 0
+    for v, f, e in zip(packed.num_vertices, packed.num_faces, packed.num_edges):
+        cut = dict(vertices=(v0, v, 0), degree=(v0, v, 0), faces=(f0, f, v0), face_edges=(f0, f, e0),
+                   edges=(e0, e, v0), src=(2 * e0, 2 * e, v0), dst=(2 * e0, 2 * e, v0), edge_of=(2 * e0, 2 * e, e0))
+        parts = {k: host[k][a:a + n] - (shift if k != "vertices" else 0) for k, (a, n, shift) in cut.items()}
+        out.append(Mesh(vertices=to_device(parts.pop("vertices"), x.dtype), **to_device(parts)))
+        v0, f0, e0 = v0 + v, f0 + f, e0 + e
     return out
 
 

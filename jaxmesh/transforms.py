@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
 from ._private import lift
 from .mesh import Mesh
 
-__all__ = ["normalize", "bounding_box_center", "unit_frame", "to_frame", "from_frame", "far_mask", "far_vertices",
+__all__ = ["normalize", "bounding_box_center", "unit_frame", "segment_unit_frame", "to_frame", "from_frame", "far_mask", "far_vertices",
            "FAR_RATIO", "FAR_SAMPLE"]
 
 #: a used vertex farther than this many times the median distance from the median position is far
@@ -84,8 +85,33 @@ def unit_frame(mesh: Mesh, far=None):
     v = mesh.vertices
     far = far_mask(mesh) if far is None else far
     used = lift((mesh.degree > 0)[:, None], v.ndim) & ~far[..., None]
-    hi = jnp.max(jnp.where(used, v, -jnp.inf), axis=-2)
-    lo = jnp.min(jnp.where(used, v, jnp.inf), axis=-2)
+    return _box_frame(jnp.max(jnp.where(used, v, -jnp.inf), axis=-2), jnp.min(jnp.where(used, v, jnp.inf), axis=-2))
+
+
+def segment_unit_frame(mesh: Mesh, far, segment, count: int):
+    """:func:`unit_frame` of each mesh of a disjoint union (:func:`jaxmesh.batch.pack_batch`):
+    ``(centre (count, 3), scale (count,))`` of the box of segment k's used vertices that are
+    not far.  A segment with no such vertex (the padding's) gets centre 0 and scale 1.
+
+    Arguments:
+        mesh: the union (single: vertices (V, 3)).
+        far: the far vertices, (V,) bool (each mesh's own :func:`far_mask`).
+        segment: the mesh each vertex belongs to, (V,) ints in [0, count).
+        count: the number of segments (static).
+
+    Returns:
+        (centre (count, 3), scale (count,))."""
+    v = mesh.vertices
+    used = ((mesh.degree > 0) & ~far)[:, None]
+    hi = jax.ops.segment_max(jnp.where(used, v, -jnp.inf), segment, count)
+    lo = jax.ops.segment_min(jnp.where(used, v, jnp.inf), segment, count)
+    empty = jnp.any(hi < lo, axis=-1)
+    return _box_frame(jnp.where(empty[:, None], 0, hi), jnp.where(empty[:, None], 0, lo))
+
+
+def _box_frame(hi, lo):
+    """(centre, diagonal) of the box [lo, hi] (*batch, 3), the diagonal overflow-safe and 1
+    where it is 0: the frame of :func:`unit_frame` and :func:`segment_unit_frame`."""
     side = hi - lo
     diag = jnp.sqrt(jnp.sum(side ** 2, axis=-1))
     big = jnp.max(jnp.abs(side), axis=-1)

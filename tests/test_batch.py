@@ -11,8 +11,8 @@ import pytest
 import trimesh
 
 import jaxmesh
-from jaxmesh.batch import pad_batch, shard, unpad
-from jaxmesh.denoise import METHODS
+from jaxmesh.batch import pack_batch, packed_spec, pad_batch, shard, unpack, unpad
+from jaxmesh.denoise import METHODS, Method, denoise_in_unit_frame, denoise_packed, diverged, packed_run
 from jaxmesh.metrics import visual_error
 
 from conftest import assert_refused, grid_arrays, octahedron_arrays
@@ -66,6 +66,89 @@ def test_pad_batch_refuses_bad_input(three_meshes):
         pad_batch([batched])
     with pytest.raises(ValueError, match="batched mesh"):
         shard(three_meshes[0])
+
+
+def _spread(meshes):
+    """The meshes at different places and scales, so that a wrong frame shows."""
+    return [m.with_vertices(np.asarray(m.vertices) * s + o) for m, s, o in
+            zip(meshes, (3.0, 0.01, 250.0), ((0, 0, 0), (5, -2, 1), (-1e3, 7, 0)))]
+
+
+def test_pack_batch_is_the_disjoint_union_and_unpacks_exactly(three_meshes):
+    meshes = _spread(three_meshes)
+    packed = pack_batch(meshes)
+    offsets = np.cumsum([0] + [m.num_vertices for m in meshes])
+    union = jaxmesh.Mesh.from_arrays(np.concatenate([np.asarray(m.vertices) for m in meshes]),
+                                     np.concatenate([np.asarray(m.faces) + o for m, o in zip(meshes, offsets)]))
+    nv, nf, ne = union.num_vertices, union.num_faces, union.num_edges
+    assert packed.mesh.vertices.shape == (nv + 1, 3) and packed.segments == 4       # one padding vertex, one segment
+    for field in ("vertices", "faces", "edges", "face_edges", "src", "dst", "edge_of", "degree"):
+        got = np.asarray(getattr(packed.mesh, field))
+        np.testing.assert_array_equal(got[:len(getattr(union, field))], getattr(union, field))
+    assert np.all(np.asarray(packed.mesh.edges)[ne:] == nv) and np.all(np.asarray(packed.mesh.faces)[nf:] == nv)
+    np.testing.assert_array_equal(packed.segment, np.repeat([0, 1, 2, 3], [m.num_vertices for m in meshes] + [1]))
+    for got, mesh in zip(unpack(packed), meshes):
+        for field in ("vertices", "faces", "edges", "face_edges", "src", "dst", "edge_of", "degree"):
+            np.testing.assert_array_equal(getattr(got, field), getattr(mesh, field))
+    spec = packed_spec((nv + 5, nf + 3, ne + 4), np.float64)
+    real = pack_batch(meshes, (nv + 5, nf + 3, ne + 4), segments=8)
+    assert jax.tree.map(lambda a: (a.shape, a.dtype), spec) == jax.tree.map(lambda a: (a.shape, a.dtype), real.mesh)
+    with pytest.raises(ValueError, match="smaller than the union needs"):
+        pack_batch(meshes, (nv, nf, ne + 1))
+    with pytest.raises(ValueError, match="too few"):
+        pack_batch(meshes, segments=3)
+    with pytest.raises(ValueError, match="at least one mesh"):
+        pack_batch([])
+
+
+LOCAL = sorted(n for n, m in METHODS.items() if m.local)
+
+
+@pytest.mark.parametrize("name", LOCAL)
+def test_a_local_method_on_the_union_gives_each_mesh_its_own_result(three_meshes, name):
+    """``Method.local`` is honest: each mesh of the union, in its own frame, gets what
+    denoise_in_unit_frame gives it alone; padding stays inert; jit equals eager."""
+    meshes = _spread(three_meshes)
+    packed = pack_batch(meshes, segments=6)
+    for got, mesh in zip(denoise_packed(packed, name, iterations=3), meshes):
+        want = denoise_in_unit_frame(mesh, name, iterations=3)
+        scale = float(np.ptp(np.asarray(mesh.vertices)))
+        np.testing.assert_allclose(got.vertices, want.vertices, rtol=0, atol=1e-12 * scale)
+    eager, bad = packed_run(packed.mesh, packed.segment, packed.far, 6, name, iterations=3)
+    jitted = jax.jit(lambda m: packed_run(m, packed.segment, packed.far, 6, name, iterations=3))(packed.mesh)
+    np.testing.assert_allclose(eager.vertices, jitted[0].vertices, rtol=1e-12, atol=1e-9)
+    assert not np.any(bad) and np.all(np.asarray(eager.vertices)[-1] == 0)
+
+
+def test_methods_with_a_global_quantity_are_refused(three_meshes):
+    packed = pack_batch(three_meshes)
+    assert {"umbrella_flow", "taubin", "hc", "kernel", "cotangent"} <= set(LOCAL)
+    for name in ("bilateral", "cauchy_diffusion", "impulse_repair", "cotangent_implicit"):
+        with pytest.raises(ValueError, match="reduces over the whole mesh"):
+            denoise_packed(packed, name)
+
+
+def test_divergence_is_told_per_mesh(three_meshes):
+    """One mesh of the union blows up (a method that scales its vertices 1000×): that mesh,
+    and only it, is reported, by :func:`diverged` per segment and by denoise_packed."""
+    import jax.numpy as jnp
+
+    packed = pack_batch(three_meshes)
+    first = three_meshes[0].num_vertices
+    second = first + three_meshes[1].num_vertices
+
+    def grow(mesh):
+        i = jnp.arange(mesh.num_vertices)[:, None]
+        return mesh.with_vertices(jnp.where((i >= first) & (i < second), 1e3, 1.0) * mesh.vertices)
+
+    blow = Method("grow", grow, {}, "test", "test", local=True)
+    _, bad = packed_run(packed.mesh, packed.segment, packed.far, packed.segments, blow)
+    np.testing.assert_array_equal(bad, [False, True, False, False])
+    with pytest.raises(FloatingPointError, match=r"packed mesh\(es\) \[1\]"):
+        denoise_packed(packed, blow)
+    nan = packed.mesh.with_vertices(packed.mesh.vertices.at[first + 2, 1].set(jnp.nan))
+    np.testing.assert_array_equal(diverged(packed.mesh, nan, far=packed.far, segment=packed.segment, segments=4),
+                                  [False, True, False, False])
 
 
 SHARDING_SCRIPT = textwrap.dedent("""

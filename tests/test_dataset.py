@@ -13,9 +13,10 @@ import numpy as np
 import pytest
 
 import jaxmesh
-from jaxmesh.dataset import LADDER_RATIO, denoise_files, expand_inputs, output_pairs, plan_batches, rung
+from jaxmesh.dataset import (LADDER_RATIO, PACK_SEGMENTS, denoise_files, expand_inputs, output_pairs, plan_batches,
+                             plan_packs, rung)
 from jaxmesh.denoise import denoise_in_unit_frame
-from conftest import write_dataset, write_pairs
+from conftest import assert_refused, write_dataset, write_pairs
 
 
 def test_rung_is_the_least_ladder_size_above():
@@ -43,6 +44,52 @@ def test_plan_covers_every_mesh_once_and_buckets_share_a_shape():
     assert len(shapes) == len({b.shape[0] for b in plan})                  # one shape per vertex bucket
     with pytest.raises(ValueError, match="batch_size"):
         plan_batches(sizes, batch_size=0)
+
+
+def test_packs_hold_every_mesh_once_within_capacity_and_share_shapes():
+    rng = np.random.default_rng(1)
+    v = np.exp(rng.uniform(np.log(20), np.log(3000), 400)).astype(int)
+    sizes = [(int(n), 2 * int(n) - 4, 3 * int(n) - 6) for n in v] + [(9000, 17996, 26994)]   # one above capacity
+    plan = plan_packs(sizes, capacity=4096, segments=16)
+    assert sorted(i for b in plan for i in b.items) == list(range(len(sizes)))
+    for b in plan:
+        total = [sum(sizes[i][d] for i in b.items) for d in range(3)]
+        assert b.packed and b.fill == 0 and len(b.items) <= 15
+        assert b.shape[0] > total[0] and b.shape[1] >= total[1] and b.shape[2] > total[2]
+        assert total[0] + 1 <= 4096 or b.items == (len(sizes) - 1,)      # the large mesh is a union of its own
+        assert b.shape == (rung(total[0] + 1), rung(total[1]), rung(total[2] + 1))
+    # first fit: at most one union is half empty (unless it holds its most meshes)
+    half = [b for b in plan if 2 * sum(sizes[i][0] for i in b.items) <= 4095 and len(b.items) < 15]
+    assert len(half) <= 1
+    for bad in ({"capacity": 1}, {"segments": 1}):
+        with pytest.raises(ValueError, match=f"{next(iter(bad))} must be an int"):
+            plan_packs(sizes, **bad)
+    assert_refused(plan_packs, sizes, capacity=2.5, param="capacity", message="capacity must be an int")
+
+
+@pytest.mark.filterwarnings("ignore::jaxmesh.mesh.MeshWarning")
+@pytest.mark.parametrize("method,params", [("taubin", {"iterations": 7}), ("cotangent", {"dt": 0.3})])
+def test_packed_runs_equal_per_mesh_calls(tmp_path, method, params):
+    """The default for a local method: the meshes run as disjoint unions, one program."""
+    paths = write_dataset(tmp_path / "in", 7)
+    s = denoise_files([str(tmp_path / "in")], tmp_path / "out", method, params)
+    assert (s.done, s.skipped, s.failed) == (7, 0, 0) and s.compiles == 1     # one union of the seven
+    for p in paths:
+        want = denoise_in_unit_frame(jaxmesh.load(str(p)), method, **params)
+        got = jaxmesh.load(str(tmp_path / "out" / p.name))
+        np.testing.assert_allclose(got.vertices, want.vertices, rtol=0, atol=1e-12 * (1 + int(p.stem[1:])))
+        np.testing.assert_array_equal(got.faces, want.faces)
+
+
+def test_pack_is_refused_where_it_cannot_run(tmp_path):
+    paths = write_dataset(tmp_path / "in", 1)
+    for method, kw, why in (("bilateral", {}, "reduces over the whole mesh"), ("auto", {}, "mesh by mesh"),
+                            ("taubin", {"params": {"lam": "auto"}}, "tuned per mesh"),
+                            ("taubin", {"batch_size": 2}, "give one of them")):
+        with pytest.raises(ValueError, match=why):
+            denoise_files(paths, tmp_path / "out", method, pack=True, **kw)
+    assert not (tmp_path / "out").exists()
+    assert PACK_SEGMENTS >= 2
 
 
 @pytest.mark.filterwarnings("ignore::jaxmesh.mesh.MeshWarning")
@@ -285,10 +332,15 @@ def test_a_mesh_with_a_far_vertex_fails_alone_named_and_the_others_keep_their_fr
     v = np.asarray(bad.vertices).copy()
     v[2, 0] = 1e30
     jaxmesh.save(bad.with_vertices(v), paths[1], overwrite=True)
-    s = denoise_files(paths, tmp_path / "out", "taubin", batch_size=2)
+    for pack, kw in ((False, {"batch_size": 2}), (True, {})):       # padded batches and one packed union
+        _far_vertex_run(tmp_path / f"out{pack}", paths, kw)
+
+
+def _far_vertex_run(out, paths, kw):
+    s = denoise_files(paths, out, "taubin", **kw)
     assert (s.done, s.failed) == (2, 1)
     failed = [r for r in s.records if r["status"] == "failed"]
     assert failed[0]["input"] == str(paths[1]) and "vertex 2 lies far from the rest" in failed[0]["error"]
     for p in (paths[0], paths[2]):
         want = denoise_in_unit_frame(jaxmesh.load(str(p)), "taubin")
-        np.testing.assert_allclose(jaxmesh.load(str(tmp_path / "out" / p.name)).vertices, want.vertices, atol=1e-12)
+        np.testing.assert_allclose(jaxmesh.load(str(out / p.name)).vertices, want.vertices, atol=1e-12)

@@ -4,6 +4,7 @@ bucket shape, resumable, failures reported and skipped)."""
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
 import sys
@@ -22,6 +23,10 @@ def dataset_arguments(p) -> None:
     p.add_argument("--ladder", type=float, default=2 ** 0.5, metavar="R",
                    help="ratio between padded mesh sizes (--out-dir; default √2; larger: fewer compiles, "
                         "more padding)")
+    p.add_argument("--pack", action=argparse.BooleanOptionalAction, default=None,
+                   help="run the meshes as disjoint unions of up to 65,536 vertices (--out-dir; default: for the "
+                        "methods with no whole-mesh quantity, such as umbrella_flow, taubin and kernel, when "
+                        "--batch-size is not given); --no-pack: padded batches")
     p.add_argument("--report", metavar="FILE", help="append one JSON line per mesh to FILE (--out-dir)")
     p.add_argument("--suffix", metavar=".EXT", help="output format for --out-dir (default: the input's)")
     p.add_argument("--tune-on", type=int, default=0, metavar="N",
@@ -78,7 +83,7 @@ def run_dataset(args, given: dict) -> int:
         jax.distributed.initialize(args.coordinator, args.num_processes, args.process_id)
     summary = denoise_files(args.paths, args.out_dir, args.method, given, batch_size=args.batch_size,
                             ladder=args.ladder, overwrite=args.force, suffix=args.suffix, report=args.report, progress=_progress,
-                            reference=args.reference, tune_on=args.tune_on)
+                            reference=args.reference, tune_on=args.tune_on, pack=args.pack)
     for rec in summary.records:
         if rec["status"] == "failed":
             where = "" if rec["input"] in rec["error"] else f"{rec['input']}: "

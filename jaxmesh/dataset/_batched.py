@@ -1,6 +1,7 @@
-"""The dataset runner's batched path: meshes padded into batches on the reader thread
-(each mesh's far vertices found there too), one program per (padded size, batch size)
-compiled ahead on two threads, each batch's outcomes; and what an input's fate is."""
+"""The dataset runner's batched path: meshes packed into disjoint unions (methods with
+``Method.local``) or padded into batches on the reader thread (each mesh's far vertices
+found there too), one program per (padded size, batch size) compiled ahead on two
+threads, each batch's outcomes; and what an input's fate is."""
 
 from __future__ import annotations
 
@@ -13,13 +14,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..batch import batch_spec, pad_batch
+from ..batch import batch_spec, pack_batch, pad_batch, packed_spec
 from ..mesh import Mesh, to_device
 from ..transforms import far_vertices
-from .plan import Batch, rung
+from .plan import PACK_SEGMENTS, Batch, rung
 
-__all__ = ["Outcome", "Tally", "Padded", "run_padded", "tuned_keys", "tuned_values", "pad_group", "run_batch",
-           "precompile"]
+__all__ = ["Outcome", "Tally", "Padded", "run_padded", "tuned_keys", "tuned_values", "pad_group", "pack_group",
+           "run_batch", "precompile"]
 
 
 class Outcome(NamedTuple):
@@ -75,7 +76,10 @@ class Padded:
 def pad_group(batch: Batch, meshes: list, ladder: float) -> Padded | None:
     """The readable meshes of ``batch`` (filled to the planned batch size with
     copies of the first) padded to the planned shape, or the next ladder size
-    where a mesh outgrew its header's estimate; None when none could be read."""
+    where a mesh outgrew its header's estimate; None when none could be read.
+    A packed batch is one union instead (:func:`pack_group`)."""
+    if batch.packed:
+        return pack_group(batch, meshes, ladder)
     good = [(k, mesh) for k, mesh in zip(batch.items, meshes) if isinstance(mesh, Mesh)]
     if not good:
         return None
@@ -83,11 +87,32 @@ def pad_group(batch: Batch, meshes: list, ladder: float) -> Padded | None:
     group += [group[0]] * (batch.fill + len(batch.items) - len(good))
     need = (max(m.num_vertices for m in group) + 1, max(m.num_faces for m in group),
             max(m.num_edges for m in group) + 1)     # the plan's sizes were estimates from the headers
-    shape = tuple(s if s >= n else rung(n, ladder) for s, n in zip(batch.shape, need))
+    shape = _grown(batch.shape, need, ladder)
     far = np.zeros((len(group), shape[0]), bool)
     for row, mesh in zip(far, group):
         row[far_vertices(mesh)] = True
     return Padded(good, shape, pad_batch(group, shape), far)
+
+
+def _grown(shape: tuple, need: tuple, ladder: float) -> tuple:
+    """The planned shape, each size that is too small for ``need`` taken to its ladder size."""
+    return tuple(s if s >= n else rung(n, ladder) for s, n in zip(shape, need))
+
+
+def pack_group(batch: Batch, meshes: list, ladder: float) -> Padded | None:
+    """The readable meshes of a packed ``batch`` as one union (:func:`~jaxmesh.batch.pack_batch`,
+    :data:`~jaxmesh.dataset.plan.PACK_SEGMENTS` segments) padded to the planned shape, or the
+    next ladder size where the meshes outgrew their headers' estimates; None when none
+    could be read.  ``far`` is the union's (V,) mask."""
+    good = [(k, mesh) for k, mesh in zip(batch.items, meshes) if isinstance(mesh, Mesh)]
+    if not good:
+        return None
+    group = [mesh for _, mesh in good]
+    need = (sum(m.num_vertices for m in group) + 1, sum(m.num_faces for m in group),
+            sum(m.num_edges for m in group) + 1)
+    shape = _grown(batch.shape, need, ladder)
+    packed = pack_batch(group, shape, PACK_SEGMENTS)
+    return Padded(good, shape, packed, np.asarray(packed.far))
 
 
 def run_batch(batch: Batch, meshes: list, prepared: Padded | None, method: str, params: dict, tally: Tally,
@@ -96,6 +121,8 @@ def run_batch(batch: Batch, meshes: list, prepared: Padded | None, method: str, 
     results = {k: Outcome(error=mesh) for k, mesh in zip(batch.items, meshes) if not isinstance(mesh, Mesh)}
     if prepared is None:
         return results
+    if batch.packed:
+        return _run_packed_batch(prepared, method, params, tally, compiled, results)
     good, shape, pb = prepared.good, prepared.shape, prepared.padded
     tally.programs.add((shape, pb.mesh.vertices.shape[0]))
     names = tuned_keys(params)
@@ -127,6 +154,31 @@ def run_batch(batch: Batch, meshes: list, prepared: Padded | None, method: str, 
     return results
 
 
+def _run_packed_batch(prepared: Padded, method: str, params: dict, tally: Tally, compiled: dict,
+                      results: dict) -> dict:
+    """The outcomes of one packed union (:func:`jaxmesh.denoise.run_packed`), added to ``results``."""
+    from ..denoise import METHODS, run_packed
+
+    good, shape, pb = prepared.good, prepared.shape, prepared.padded
+    tally.programs.add((shape, "packed"))
+    cont, statics = METHODS[method].split(**params)
+    ahead = compiled.get((shape, "packed"))
+    out, bad = (ahead.result()(pb.mesh, pb.segment, pb.far, cont) if ahead is not None
+                else run_packed(pb.mesh, pb.segment, pb.far, cont, pb.segments, method, statics))
+    x, bad = np.asarray(out.vertices), np.asarray(bad)     # only the positions come back
+    start = 0
+    for j, (k, mesh) in enumerate(good):
+        v = mesh.num_vertices
+        far = np.flatnonzero(prepared.far[start:start + v])
+        why = f" (vertex {far[0]} lies far from the rest: a corrupt coordinate?)" if far.size else ""
+        results[k] = (Outcome(error=FloatingPointError(f"{method} diverged on this mesh with {params}{why}"))
+                      if bad[j] else Outcome(mesh.with_vertices(to_device(x[start:start + v]))))
+        start += v
+    tally.real += start
+    tally.padded += shape[0]
+    return results
+
+
 def precompile(plan: list[Batch], method: str, params: dict, dtype, workers: int = 2) -> dict:
     """Compile every planned (shape, batch size) on ``workers`` threads, ahead of
     the stream (XLA compiles without the GIL, so this overlaps reading):
@@ -137,6 +189,11 @@ def precompile(plan: list[Batch], method: str, params: dict, dtype, workers: int
     pool = concurrent.futures.ThreadPoolExecutor(workers, thread_name_prefix="jaxmesh-compile")
     jobs = {}
     for b in plan:
+        if b.packed:
+            key = (b.shape, "packed")
+            if key not in jobs:
+                jobs[key] = pool.submit(lambda k=key: _lower_packed(k[0], cont, method, statics, dtype).compile())
+            continue
         key = (b.shape, len(b.items) + b.fill)
         if key not in jobs:
             jobs[key] = pool.submit(lambda k=key: run_padded.lower(
@@ -144,3 +201,12 @@ def precompile(plan: list[Batch], method: str, params: dict, dtype, workers: int
                 statics=statics).compile())
     pool.shutdown(wait=False)
     return jobs
+
+
+def _lower_packed(shape: tuple, cont: dict, method: str, statics: tuple, dtype):
+    """:func:`jaxmesh.denoise.run_packed` lowered for unions padded to ``shape``."""
+    from ..denoise import run_packed
+
+    vector = functools.partial(jax.ShapeDtypeStruct, (shape[0],))
+    return run_packed.lower(packed_spec(shape, dtype), vector(jnp.int32), vector(bool), cont, segments=PACK_SEGMENTS,
+                            method=method, statics=statics)

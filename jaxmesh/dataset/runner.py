@@ -39,7 +39,7 @@ from . import supervision
 from ._batched import Outcome, Tally, pad_group, precompile, run_batch, tuned_keys, tuned_values
 from .streams import Report, Writer, read_ahead
 from .plan import (LADDER_RATIO, LADDER_START, MESH_SUFFIXES, Batch, default_batch_size, output_pairs, peek_sizes,
-                   plan_batches, rung)
+                   plan_batches, plan_packs, rung)
 
 __all__ = ["DatasetSummary", "denoise_files"]
 
@@ -146,7 +146,7 @@ def denoise_files(inputs: Sequence[str | Path], out_dir: str | Path, method: str
                   suffix: str | None = None, report: str | Path | None = None,
                   progress: Callable[[int, int], None] | None = None,
                   share: tuple[int, int] | None = None, reference: str | Path | None = None,
-                  tune_on: int = 0) -> DatasetSummary:
+                  tune_on: int = 0, pack: bool | None = None) -> DatasetSummary:
     """Denoise every mesh of ``inputs`` into ``out_dir`` in size buckets (module
     docstring): one compiled program per (padded size, batch size).
 
@@ -171,6 +171,9 @@ def denoise_files(inputs: Sequence[str | Path], out_dir: str | Path, method: str
         tune_on: tune the ``"auto"`` parameters once on the first ``tune_on`` inputs
             (against ``reference`` when given, else blind) and apply that setting to
             all (default 0: each mesh tuned blind by itself).
+        pack: run the meshes as disjoint unions (:func:`~jaxmesh.dataset.plan.plan_packs`), not
+            padded batches.  Default: when the method is ``local``, no parameter is tuned per
+            mesh and no ``batch_size`` is given; True where it cannot is an error.
 
     Returns:
         A :class:`DatasetSummary` (counts, compiles, padding waste, seconds, one
@@ -181,6 +184,7 @@ def denoise_files(inputs: Sequence[str | Path], out_dir: str | Path, method: str
     start = time.perf_counter()
     params = dict(params or {})
     method = _check(method, params, suffix)
+    packs = _packs(method, params, pack, batch_size)
     rung(LADDER_START + 1, ladder)            # the ladder checked before any file is read
     out_dir = Path(out_dir)
     index, count = share if share is not None else (jax.process_index(), jax.process_count())
@@ -193,14 +197,9 @@ def denoise_files(inputs: Sequence[str | Path], out_dir: str | Path, method: str
         params, training = supervision.tune_on_subset(inputs, tune_on, method, params, tuned_keys(params), folder, load)
         records = [{**rec, "tuned_on": training} for rec in records]
     out_dir.mkdir(parents=True, exist_ok=True)
-    todo = [k for k, rec in enumerate(records) if "status" not in rec]
-    sizes = {todo[j]: s for j, s in _read_sizes([items[k] for k in todo], load, [records[k] for k in todo]).items()}
-    todo = [k for k in todo if k in sizes]
-    for rec in records:
-        if "status" in rec:
-            log.write(rec)
+    todo, sizes = _first_pass(items, records, load, log)
     batched = method != "auto" and not METHODS[method].aux
-    plan = _plan(sizes, todo, batch_size, ladder) if batched else [Batch((k,), 0, (0, 0, 0)) for k in todo]
+    plan = _plan(sizes, todo, batch_size, ladder, packs) if batched else [Batch((k,), 0, (0, 0, 0)) for k in todo]
     ahead = batched and not tuned_keys(params)
     compiled = precompile(plan, method, params, jnp.result_type(float)) if ahead else {}
     tally, writer, finished = Tally(), Writer(_save_keeping, overwrite, log), 0
@@ -222,11 +221,39 @@ def denoise_files(inputs: Sequence[str | Path], out_dir: str | Path, method: str
     return _summary(records, tally, start)
 
 
-def _plan(sizes: dict, todo: list[int], batch_size: int | None, ladder: float) -> list[Batch]:
-    """The padded batches of the inputs ``todo`` (indices into the records), from the (V, F, E)
-    ``sizes`` the first pass read."""
+def _first_pass(items: list, records: list, load: Callable, log: Report) -> tuple[list[int], dict]:
+    """(the inputs still to do that could be read, their (V, F, E) sizes); every record
+    settled so far (skipped, unreadable) goes to the report."""
+    todo = [k for k, rec in enumerate(records) if "status" not in rec]
+    sizes = {todo[j]: s for j, s in _read_sizes([items[k] for k in todo], load, [records[k] for k in todo]).items()}
+    for rec in records:
+        if "status" in rec:
+            log.write(rec)
+    return [k for k in todo if k in sizes], sizes
+
+
+def _packs(method: str, params: dict, pack: bool | None, batch_size: int | None) -> bool:
+    """Whether the run packs its meshes into disjoint unions (``pack`` in :func:`denoise_files`)."""
+    from ..denoise import METHODS
+
+    why = ("method 'auto' runs mesh by mesh" if method == "auto" else
+           f"{method} reduces over the whole mesh (not Method.local)" if not METHODS[method].local else
+           "parameters tuned per mesh need padded batches" if tuned_keys(params) else None)
+    if pack is None:
+        return why is None and batch_size is None
+    if pack and why is not None:
+        raise ValueError(f"pack=True: {why}")
+    if pack and batch_size is not None:
+        raise ValueError("pack=True and batch_size: a packed union holds as many meshes as fit; give one of them")
+    return bool(pack)
+
+
+def _plan(sizes: dict, todo: list[int], batch_size: int | None, ladder: float, packs: bool = False) -> list[Batch]:
+    """The padded batches (or packed unions) of the inputs ``todo`` (indices into the records),
+    from the (V, F, E) ``sizes`` the first pass read."""
     batch_size = default_batch_size() if batch_size is None else batch_size
-    plan = plan_batches([sizes[k] for k in todo], batch_size, ladder)
+    plan = (plan_packs([sizes[k] for k in todo], ratio=ladder) if packs
+            else plan_batches([sizes[k] for k in todo], batch_size, ladder))
     return [dataclasses.replace(b, items=tuple(todo[i] for i in b.items)) for b in plan]
 
 

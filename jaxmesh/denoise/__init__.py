@@ -31,10 +31,12 @@ from .laplacian import hc_smoothing, laplacian_smoothing, taubin_smoothing
 from .normal_filtering import FaceRings, face_rings, filter_normals, normal_filtering, ring_sum
 from .registry import METHODS, Method, Param, as_method, denoise, diverged
 from .framed import denoise_in_unit_frame
+from .packed import denoise_packed, packed_run, run_packed
 from .selection import hold, pin_weights, region_weights, selection_mask
 
 __all__ = [
     "METHODS", "Method", "Param", "as_method", "denoise", "diverged", "progress", "denoise_in_unit_frame",
+    "denoise_packed", "packed_run", "run_packed",
     "VARIANTS", "kernel_diffusion", "kernel_step", "kernel_weights", "neighborhood_covariances",
     "VertexRings", "VertexTier", "vertex_rings",
     "hold", "region_weights", "pin_weights", "selection_mask",

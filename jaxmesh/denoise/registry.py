@@ -97,6 +97,9 @@ class Method:
     summary: str
     reference: str
     constraint: Callable[[dict], str | None] | None = None
+    #: no reduction over the whole mesh: on a disjoint union of meshes (each in its own
+    #: frame) it gives each mesh its own result (:func:`jaxmesh.denoise.packed_run`)
+    local: bool = False
 
     def defaults(self) -> dict[str, Any]:
         return {k: p.default for k, p in self.params.items()}
@@ -222,7 +225,7 @@ METHODS: dict[str, Method] = {
             "variant": Param("random_walk", "choice", "update rule", choices=("random_walk", "paper")),
             "safeguard": Param(True, "choice", "cap the random-walk step (never diverges)",
                                choices=(True, False)),
-        }, "multivariate kernel diffusion (the thesis, ch.2)", "Tarmissi 2010, ch.2 eq.6-12"),
+        }, "multivariate kernel diffusion (the thesis, ch.2)", "Tarmissi 2010, ch.2 eq.6-12", local=True),
         Method("cauchy_diffusion", anisotropic_diffusion, {
             "dt": Param(0.25, "continuous", "step size", (0.01, 0.5), True),
             "c": Param(1.0, "continuous", "Cauchy scale, relative to the mean |∇x|", (0.05, 20.0), True),
@@ -233,7 +236,7 @@ METHODS: dict[str, Method] = {
             "lam": Param(0.5, "continuous", "umbrella step", (0.01, 1.0), True, domain=(0.0, 1.0), closed="(]"),
             "iterations": _it(10),
             "boundary": _BOUNDARY,
-        }, "umbrella flow x <- x + λ K x (Laplacian smoothing)", "Taubin 1995"),
+        }, "umbrella flow x <- x + λ K x (Laplacian smoothing)", "Taubin 1995", local=True),
         Method("taubin", taubin_smoothing, {
             "lam": Param(0.5, "continuous", "shrinking step λ ∈ (0, 1]", (0.01, 1.0), True, domain=(0.0, 1.0),
                          closed="(]"),
@@ -241,7 +244,7 @@ METHODS: dict[str, Method] = {
                         domain=(-1.0, 0.0), closed="[)"),
             "iterations": _it(10),
             "boundary": _BOUNDARY,
-        }, "Taubin λ|μ low-pass filter", "Taubin 1995", _taubin_pass_band),
+        }, "Taubin λ|μ low-pass filter", "Taubin 1995", _taubin_pass_band, local=True),
         Method("hc", hc_smoothing, {
             "alpha": Param(0.1, "continuous", "pull towards the original positions", (0.0, 1.0),
                            domain=(0.0, 1.0), closed="[]"),
@@ -249,11 +252,11 @@ METHODS: dict[str, Method] = {
                           domain=(0.0, 1.0), closed="[]"),
             "iterations": _it(10),
             "boundary": _BOUNDARY,
-        }, "HC Laplacian (extra baseline, not in the thesis)", "Vollmer, Mencl & Müller 1999"),
+        }, "HC Laplacian (extra baseline, not in the thesis)", "Vollmer, Mencl & Müller 1999", local=True),
         Method("cotangent", functools.partial(cotangent_flow, implicit=False), {
             "dt": Param(0.5, "continuous", "normalised explicit step", (0.01, 1.0), True),
             "iterations": _it(5),
-        }, "mean-curvature flow, cotangent weights, explicit", "Desbrun et al. 1999"),
+        }, "mean-curvature flow, cotangent weights, explicit", "Desbrun et al. 1999", local=True),
         Method("cotangent_implicit", functools.partial(cotangent_flow, implicit=True), {
             "dt": Param(0.3, "continuous", "time step in units of the mean vertex area", (0.01, 100.0), True),
             "iterations": _it(3),
@@ -349,28 +352,39 @@ def denoise(mesh: Mesh, method: "str | Method" = "kernel", *, where=None, throw:
     return out if where is None else hold(mesh, out, where)
 
 
-def diverged(before: Mesh, after: Mesh, growth: float = 10.0, far=None):
+def diverged(before: Mesh, after: Mesh, growth: float = 10.0, far=None, segment=None, segments: int | None = None):
     """True (per batch element) where ``after`` has a non-finite coordinate or a
     bounding-box diagonal more than ``growth`` times that of ``before``: a
     smoothing flow never enlarges a mesh, so growth means the run blew up.  Both
     boxes are of the vertices that are not far in ``before``
     (:func:`~jaxmesh.transforms.far_mask`), so a corrupt coordinate smeared over
-    its neighbours counts as growth.
+    its neighbours counts as growth.  With ``segment``, the same test for each mesh
+    of a disjoint union (:func:`jaxmesh.batch.pack_batch`).
 
     Arguments:
         before: the input mesh.
         after: the output mesh.
         growth: the largest allowed growth of the bounding-box diagonal.
-        far: :func:`~jaxmesh.transforms.far_mask` of ``before``, when the caller has it.
+        far: :func:`~jaxmesh.transforms.far_mask` of ``before``, when the caller has it
+            (required with ``segment``: each mesh's own).
+        segment: the mesh each vertex of a union belongs to, (V,) (default: one mesh).
+        segments: the number of segments (static), with ``segment``.
 
     Returns:
-        A bool array, (*batch)."""
+        A bool array, (*batch), or (segments,) with ``segment``."""
     x = after.vertices
-    finite = jnp.all(jnp.isfinite(x), axis=(-2, -1))
+    if segment is None:
+        finite = jnp.all(jnp.isfinite(x), axis=(-2, -1))
+        top = functools.partial(jnp.max, axis=-2)
+        bottom = functools.partial(jnp.min, axis=-2)
+    else:
+        finite = jax.ops.segment_min(jnp.all(jnp.isfinite(x), axis=-1).astype(jnp.int32), segment, segments) > 0
+        top = functools.partial(jax.ops.segment_max, segment_ids=segment, num_segments=segments)
+        bottom = functools.partial(jax.ops.segment_min, segment_ids=segment, num_segments=segments)
     near = lift(~(far_mask(before) if far is None else far)[..., None], x.ndim)
 
     def diagonal(v):
-        return safe_norm(jnp.max(jnp.where(near, v, -jnp.inf), axis=-2) - jnp.min(jnp.where(near, v, jnp.inf), axis=-2))
+        return safe_norm(top(jnp.where(near, v, -jnp.inf)) - bottom(jnp.where(near, v, jnp.inf)))
 
     grown = diagonal(x) > growth * diagonal(before.vertices)
     return ~finite | grown
