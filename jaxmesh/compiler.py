@@ -175,7 +175,7 @@ def memory_maps() -> int:
         Their count; 0 where the system has no such file (no such limit to watch)."""
     try:
         with open("/proc/self/maps", "rb") as f:
-            return sum(1 for _ in f)
+            return f.read().count(b"\n")        # one pass in C: a line generator took 5 ms per call
     except OSError:
         return 0
 
