@@ -64,11 +64,17 @@ def _host(mesh: Mesh) -> dict[str, np.ndarray]:
     return {k: np.asarray(getattr(mesh, k)) for k in _FIELDS}
 
 
-def _padded(host: dict[str, np.ndarray], nv: int, nf: int, ne: int) -> dict[str, np.ndarray]:
-    """One mesh's host arrays padded inertly (module docstring) to nv vertices, nf faces, ne edges."""
-    d, e = len(host["vertices"]), len(host["edges"])      # first padding vertex / edge
+def _layout(nv: int, nf: int, ne: int, d: int, e: int) -> tuple[dict, dict]:
+    """The inert padding (module docstring): each array's padded length, and its fill when
+    the first padding vertex is d and the first padding edge e."""
     lengths = dict(vertices=nv, faces=nf, face_edges=nf, edges=ne, src=2 * ne, dst=2 * ne, edge_of=2 * ne, degree=nv)
     fills = dict(vertices=0, faces=d, face_edges=e, edges=d, src=d, dst=d, edge_of=e, degree=0)
+    return lengths, fills
+
+
+def _padded(host: dict[str, np.ndarray], nv: int, nf: int, ne: int) -> dict[str, np.ndarray]:
+    """One mesh's host arrays padded inertly to nv vertices, nf faces, ne edges."""
+    lengths, fills = _layout(nv, nf, ne, len(host["vertices"]), len(host["edges"]))
     return {k: _pad(host[k], lengths[k], fills[k]) for k in _FIELDS}
 
 
@@ -203,12 +209,7 @@ def pack_batch(meshes: Sequence[Mesh], pad_to: tuple[int, int, int] | None = Non
     hosts = [_host(m) for m in meshes]
     nvs = [len(h["vertices"]) for h in hosts]
     nes = [len(h["edges"]) for h in hosts]
-    voff = np.cumsum([0] + nvs)[:-1]
-    eoff = np.cumsum([0] + nes)[:-1]
-    shift = dict(faces=voff, edges=voff, src=voff, dst=voff, face_edges=eoff, edge_of=eoff)
-    union = {k: np.concatenate([h[k] + (shift[k][j] if k in shift else 0) for j, h in enumerate(hosts)]).astype(
-        hosts[0][k].dtype) for k in _FIELDS}
-    need = (len(union["vertices"]) + 1, len(union["faces"]), len(union["edges"]) + 1)
+    need = (sum(nvs) + 1, sum(len(h["faces"]) for h in hosts), sum(nes) + 1)
     if pad_to is not None:
         want = tuple(int(n) for n in pad_to)
         if len(want) != 3 or any(w < n for w, n in zip(want, need)):
@@ -219,16 +220,33 @@ def pack_batch(meshes: Sequence[Mesh], pad_to: tuple[int, int, int] | None = Non
     if count < len(meshes) + 1:
         raise ValueError(f"segments={segments} is too few for {len(meshes)} meshes and the padding "
                          f"(at least {len(meshes) + 1})")
-    cols = _padded(union, *need)
+    cols = _union(hosts, *need)
     arrays = to_device({k: cols[k] for k in _FIELDS if k != "vertices"})
     segment = np.full(need[0], count - 1, np.int32)
     segment[:sum(nvs)] = np.repeat(np.arange(len(meshes), dtype=np.int32), nvs)
     far = np.zeros(need[0], bool)
-    for m, start in zip(meshes, voff):
+    for m, start in zip(meshes, np.cumsum([0] + nvs)):
         far[start + far_vertices(m)] = True
     mesh = Mesh(vertices=to_device(cols["vertices"], meshes[0].dtype), **arrays)
     return PackedBatch(mesh, to_device(segment), to_device(far), count, tuple(nvs),
                        tuple(m.num_faces for m in meshes), tuple(nes))
+
+
+def _union(hosts: list[dict], nv: int, nf: int, ne: int) -> dict[str, np.ndarray]:
+    """The meshes' host arrays joined (each mesh's vertex and edge indices shifted by the
+    counts before it) and padded inertly to nv vertices, nf faces, ne edges, written in place."""
+    lengths, fills = _layout(nv, nf, ne, sum(len(h["vertices"]) for h in hosts), sum(len(h["edges"]) for h in hosts))
+    cols = {k: np.full((lengths[k],) + hosts[0][k].shape[1:], fills[k], hosts[0][k].dtype) for k in _FIELDS}
+    at = dict.fromkeys(_FIELDS, 0)
+    v0 = e0 = 0
+    for h in hosts:
+        shift = dict(vertices=0, degree=0, faces=v0, edges=v0, src=v0, dst=v0, face_edges=e0, edge_of=e0)
+        for k in _FIELDS:
+            n = len(h[k])
+            np.add(h[k], shift[k], out=cols[k][at[k]:at[k] + n], casting="unsafe")
+            at[k] += n
+        v0, e0 = v0 + len(h["vertices"]), e0 + len(h["edges"])
+    return cols
 
 
 def packed_spec(pad_to: tuple[int, int, int], dtype) -> Mesh:

@@ -24,7 +24,7 @@ def dataset_arguments(p) -> None:
                    help="ratio between padded mesh sizes (--out-dir; default √2; larger: fewer compiles, "
                         "more padding)")
     p.add_argument("--pack", action=argparse.BooleanOptionalAction, default=None,
-                   help="run the meshes as disjoint unions of up to 65,536 vertices (--out-dir; default: for the "
+                   help="run the meshes as disjoint unions of up to 61,440 vertices (--out-dir; default: for the "
                         "methods with no whole-mesh quantity, such as umbrella_flow, taubin and kernel, when "
                         "--batch-size is not given); --no-pack: padded batches")
     p.add_argument("--report", metavar="FILE", help="append one JSON line per mesh to FILE (--out-dir)")

@@ -3,6 +3,7 @@ ahead, a writer behind, and the JSON-lines report they feed."""
 
 from __future__ import annotations
 
+import concurrent.futures
 import json
 import queue
 import threading
@@ -13,7 +14,7 @@ from .plan import Batch
 __all__ = ["read_ahead", "Report", "Writer"]
 
 
-def read_ahead(plan: list[Batch], items, loader, prepare=None):
+def read_ahead(plan: list[Batch], items, loader, prepare=None, readers: int = 2):
     """(batch, its meshes, prepared) one batch ahead, read on a thread; a mesh that
     fails to read comes as its exception.
 
@@ -23,21 +24,25 @@ def read_ahead(plan: list[Batch], items, loader, prepare=None):
         loader: the mesh reader (:func:`jaxmesh.load`).
         prepare: called as ``prepare(batch, meshes)`` on the reader thread too (the
             runner pads the batch there, overlapping the computation); None: no call.
+        readers: the threads that read a batch's files (numpy's parsing and sorting
+            release the GIL, so two readers use the core the computation leaves idle).
 
     Returns:
         A generator of (batch, [mesh or exception per item], what ``prepare`` returned or None)."""
     q: queue.Queue = queue.Queue(maxsize=1)
 
+    def one(k):
+        try:
+            return loader(items[k][0])
+        except (ValueError, OSError) as err:
+            return err
+
     def read():
         try:
-            for b in plan:
-                meshes = []
-                for k in b.items:
-                    try:
-                        meshes.append(loader(items[k][0]))
-                    except (ValueError, OSError) as err:
-                        meshes.append(err)
-                q.put((b, meshes, None if prepare is None else prepare(b, meshes)))
+            with concurrent.futures.ThreadPoolExecutor(readers, thread_name_prefix="jaxmesh-read") as pool:
+                for b in plan:
+                    meshes = list(pool.map(one, b.items))
+                    q.put((b, meshes, None if prepare is None else prepare(b, meshes)))
         except BaseException as err:    # anything else ends the stream in the consumer, not in a silent hang
             q.put(err)
             return
