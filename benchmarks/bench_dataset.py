@@ -13,7 +13,7 @@ isotropic Gaussian noise of 0.2 mean edge lengths; binary PLY.
 from and written to disk:
 
 * *runner*: :func:`jaxmesh.dataset.denoise_files` with its defaults (the umbrella
-  flow is ``local``, so the meshes run packed into disjoint unions of up to 2^16
+  flow is ``local``, so the meshes run packed into disjoint unions of up to 61,440
   vertices, one compile per union shape; read-ahead and write-behind threads);
 * *runner-padded*: the same with ``pack=False``: size buckets of padded batches,
   one compile per bucket shape (the runner's path for methods that are not local);
