@@ -37,7 +37,7 @@ import numpy as np
 import trimesh
 
 import jaxmesh
-from jaxmesh.denoise import kernel_diffusion, laplacian_smoothing, vertex_rings
+from jaxmesh.denoise import kernel_diffusion, umbrella_flow, vertex_rings
 
 
 def median_time(fn, repeat: int) -> float:
@@ -99,7 +99,7 @@ def bench(mesh: jaxmesh.Mesh, label: str, repeat: int, flag: bool) -> dict:
     rings = vertex_rings(noisy)
     k10 = jax.jit(lambda m, r: kernel_diffusion(m, 0.4, 10, rings=r))
     s10 = jax.jit(lambda m: kernel_diffusion(m, 0.4, 10))          # traced mesh, no rings: segment sums
-    l10 = jax.jit(lambda m: laplacian_smoothing(m, 0.5, 10))
+    l10 = jax.jit(lambda m: umbrella_flow(m, 0.5, 10))
     jax.block_until_ready(k10(noisy, rings).vertices)
     jax.block_until_ready(s10(noisy).vertices)
     jax.block_until_ready(l10(noisy).vertices)

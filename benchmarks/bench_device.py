@@ -53,7 +53,7 @@ def child_flows(count: int) -> dict:
     from jaxmesh.dataset import denoise_files
     from jaxmesh.denoise import METHODS, denoise
     from jaxmesh.denoise.kernel_flow import kernel_diffusion
-    from jaxmesh.denoise.laplacian import laplacian_smoothing
+    from jaxmesh.denoise.laplacian import umbrella_flow
     from jaxmesh.denoise.vertex_rings import vertex_rings
     from bench_denoise import median_time
 
@@ -62,7 +62,7 @@ def child_flows(count: int) -> dict:
         mesh = _bunny(big)
         rings = vertex_rings(mesh)
         k10 = jax.jit(lambda m, r: kernel_diffusion(m, 0.4, 10, rings=r))
-        l10 = jax.jit(lambda m: laplacian_smoothing(m, 0.5, 10))
+        l10 = jax.jit(lambda m: umbrella_flow(m, 0.5, 10))
         jax.block_until_ready(k10(mesh, rings).vertices)
         jax.block_until_ready(l10(mesh).vertices)
         out[f"kernel flow, {label}, per iteration"] = median_time(lambda: jax.block_until_ready(k10(mesh, rings).vertices), 5) / 10

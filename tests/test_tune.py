@@ -11,7 +11,7 @@ from jax.test_util import check_grads
 
 import jaxmesh
 from conftest import grid_arrays
-from jaxmesh.denoise import METHODS, kernel_diffusion, laplacian_smoothing
+from jaxmesh.denoise import METHODS, kernel_diffusion, umbrella_flow
 from jaxmesh.metrics import visual_error
 from jaxmesh.transforms import unit_frame
 from jaxmesh.tune import (
@@ -208,7 +208,7 @@ def test_hutchinson_trace_matches_the_exact_trace_for_a_linear_smoother():
     """Laplacian flow is linear, f(y) = S y: tr(M S) from the dense Jacobian equals the
     mean over many probes of the SURE divergence term."""
     mesh = sphere(1)
-    f = lambda y: laplacian_smoothing(mesh.with_vertices(y), 0.5, 3).vertices  # noqa: E731
+    f = lambda y: umbrella_flow(mesh.with_vertices(y), 0.5, 3).vertices  # noqa: E731
     y = mesh.vertices
     n = y.size
     jac = jax.jacfwd(lambda flat: f(flat.reshape(y.shape)).ravel())(y.ravel()).reshape(n, n)

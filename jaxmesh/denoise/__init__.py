@@ -27,7 +27,7 @@ from .kernel_flow import (
 )
 from .vertex_rings import VertexRings, VertexTier, vertex_rings
 from .kde import kernel_density
-from .laplacian import hc_smoothing, laplacian_smoothing, taubin_smoothing
+from .laplacian import hc_smoothing, umbrella_flow, taubin_smoothing
 from .normal_filtering import FaceRings, face_rings, filter_normals, normal_filtering, ring_sum
 from .registry import METHODS, Method, Param, as_method, denoise, diverged
 from .framed import denoise_in_unit_frame
@@ -41,7 +41,7 @@ __all__ = [
     "VertexRings", "VertexTier", "vertex_rings",
     "hold", "region_weights", "pin_weights", "selection_mask",
     "kernel_density",
-    "anisotropic_diffusion", "laplacian_smoothing", "taubin_smoothing", "hc_smoothing", "cotangent_flow",
+    "anisotropic_diffusion", "umbrella_flow", "taubin_smoothing", "hc_smoothing", "cotangent_flow",
     "implicit_diffusion_step", "normal_filtering", "filter_normals", "face_rings", "FaceRings",
     "ring_sum", "bilateral_denoising", "geometric_diffusion", "anisotropic_stiffness",
     "face_curvatures",

@@ -1,8 +1,8 @@
-"""Laplacian flow and Taubin's λ|μ smoothing (Taubin 1995).
+"""The umbrella flow (Laplacian smoothing) and Taubin's λ|μ smoothing (Taubin 1995).
 
 Both use the umbrella operator K x_i = (1/d_i) sum_{j~i} x_j - x_i:
 
-* Laplacian flow:  x <- x + λ K x                       (0 < λ <= 1 keeps every
+* umbrella flow:   x <- x + λ K x                       (0 < λ <= 1 keeps every
   vertex in the convex hull of itself and its neighbours; the mesh shrinks)
 * Taubin λ|μ:      x <- x + λ K x, then x <- x + μ K x, μ < -λ < 0
   (a low-pass filter with pass-band frequency k_PB = 1/λ + 1/μ > 0 that does
@@ -63,10 +63,10 @@ def smoothing_operator(mesh: Mesh, boundary: str = "free"):
 
     return op
 
-__all__ = ["laplacian_smoothing", "taubin_smoothing", "hc_smoothing", "hc_step"]
+__all__ = ["umbrella_flow", "taubin_smoothing", "hc_smoothing", "hc_step"]
 
 
-def laplacian_smoothing(mesh: Mesh, lam: Scalar = 0.5, iterations: int = 10, boundary: str = "free") -> Mesh:
+def umbrella_flow(mesh: Mesh, lam: Scalar = 0.5, iterations: int = 10, boundary: str = "free") -> Mesh:
     """``iterations`` explicit steps of x <- x + λ K x (umbrella flow).
 
     Arguments:

@@ -30,7 +30,7 @@ from .bilateral import bilateral_denoising
 from .curvature import cotangent_flow
 from .geometric_diffusion import geometric_diffusion
 from .kernel_flow import kernel_diffusion
-from .laplacian import BOUNDARY_MODES, hc_smoothing, laplacian_smoothing, taubin_smoothing
+from .laplacian import BOUNDARY_MODES, hc_smoothing, umbrella_flow, taubin_smoothing
 from .bilateral_normal import bilateral_normal_filtering
 from .face_graph import face_graph
 from .selection import hold
@@ -232,7 +232,7 @@ METHODS: dict[str, Method] = {
             "iterations": _it(10),
             "variant": Param("random_walk", "choice", "update rule", choices=("random_walk", "paper")),
         }, "vertex-based anisotropic diffusion, Cauchy weight", "Zhang & Ben Hamza 2006"),
-        Method("umbrella_flow", laplacian_smoothing, {
+        Method("umbrella_flow", umbrella_flow, {
             "lam": Param(0.5, "continuous", "umbrella step", (0.01, 1.0), True, domain=(0.0, 1.0), closed="(]"),
             "iterations": _it(10),
             "boundary": _BOUNDARY,

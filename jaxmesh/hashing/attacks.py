@@ -21,7 +21,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from ..denoise.laplacian import laplacian_smoothing
+from ..denoise.laplacian import umbrella_flow
 from ..mesh import Mesh
 from ..noise import add_noise
 
@@ -149,7 +149,7 @@ def smooth(mesh: Mesh, iterations: int = 10, lam: float = 0.5, seed: int = 0) ->
     Returns:
         The attacked mesh."""
     _single(mesh)
-    return laplacian_smoothing(mesh, lam=lam, iterations=iterations)
+    return umbrella_flow(mesh, lam=lam, iterations=iterations)
 
 
 def add_gaussian_noise(mesh: Mesh, sigma: float = 0.25, seed: int = 0) -> Mesh:

@@ -104,9 +104,9 @@ PROJECTION_SMOOTHING = 3
 def _projection_normals(mesh: Mesh):
     """n_i: the area-weighted vertex normals of the mesh after
     :data:`PROJECTION_SMOOTHING` umbrella steps x ← x + ½ K x (module docstring)."""
-    from ..denoise.laplacian import laplacian_smoothing
+    from ..denoise.laplacian import umbrella_flow
 
-    return vertex_normals(laplacian_smoothing(mesh, 0.5, PROJECTION_SMOOTHING), "area")
+    return vertex_normals(umbrella_flow(mesh, 0.5, PROJECTION_SMOOTHING), "area")
 
 
 def projection_normals(host: HostMesh):
