@@ -85,7 +85,7 @@ def test_pack_is_refused_where_it_cannot_run(tmp_path):
     paths = write_dataset(tmp_path / "in", 1)
     for method, kw, why in (("bilateral", {}, "reduces over the whole mesh"), ("auto", {}, "mesh by mesh"),
                             ("taubin", {"params": {"lam": "auto"}}, "tuned per mesh"),
-                            ("taubin", {"batch_size": 2}, "give one of them")):
+                            ("taubin", {"batch_size": 2}, "not both")):
         with pytest.raises(ValueError, match=why):
             denoise_files(paths, tmp_path / "out", method, pack=True, **kw)
     assert not (tmp_path / "out").exists()

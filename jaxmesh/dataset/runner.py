@@ -242,9 +242,10 @@ def _packs(method: str, params: dict, pack: bool | None, batch_size: int | None)
     if pack is None:
         return why is None and batch_size is None
     if pack and why is not None:
-        raise ValueError(f"pack=True: {why}")
+        raise ValueError(f"cannot pack the meshes (pack=True, --pack): {why}")
     if pack and batch_size is not None:
-        raise ValueError("pack=True and batch_size: a packed union holds as many meshes as fit; give one of them")
+        raise ValueError("cannot pack the meshes with a batch size (a union holds as many meshes as fit): give "
+                         "pack=True (--pack) or batch_size (--batch-size), not both")
     return bool(pack)
 
 
