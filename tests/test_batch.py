@@ -120,6 +120,16 @@ def test_a_local_method_on_the_union_gives_each_mesh_its_own_result(three_meshes
     assert not np.any(bad) and np.all(np.asarray(eager.vertices)[-1] == 0)
 
 
+def test_a_float32_union_matches_single_float32_calls(three_meshes):
+    meshes = [m.astype(np.float32) for m in _spread(three_meshes)]
+    packed = pack_batch(meshes)
+    assert packed.mesh.vertices.dtype == np.float32
+    for got, mesh in zip(denoise_packed(packed, "taubin"), meshes):
+        assert got.vertices.dtype == np.float32
+        want = denoise_in_unit_frame(mesh, "taubin")
+        np.testing.assert_allclose(got.vertices, want.vertices, rtol=0, atol=1e-5 * float(np.ptp(mesh.vertices)))
+
+
 def test_methods_with_a_global_quantity_are_refused(three_meshes):
     packed = pack_batch(three_meshes)
     assert {"umbrella_flow", "taubin", "hc", "kernel", "cotangent"} <= set(LOCAL)
