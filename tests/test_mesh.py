@@ -11,6 +11,7 @@ import pytest
 
 import jaxmesh
 from jaxmesh import Mesh, MeshWarning
+from jaxmesh.mesh import build_topology
 from conftest import grid_arrays, tetrahedron_arrays
 
 
@@ -178,3 +179,25 @@ def test_non_manifold_input_is_accepted_and_reported():
     info = jaxmesh.mesh_info(m)
     assert info["non_manifold_edges"] == 1 and not info["manifold"] and info["genus"] is None
     assert np.isfinite(np.asarray(jaxmesh.operators.cotangent_weights(m))).all()
+
+
+@pytest.mark.parametrize("num_vertices", [40, 50_000])     # 32-bit and 64-bit edge keys
+def test_build_topology_against_a_plain_reference(num_vertices):
+    """Edges, the opposite-edge table, the directed edges sorted by (src, dst) and the degrees,
+    against a dictionary and lexsort written from their definitions."""
+    rng = np.random.default_rng(num_vertices)
+    faces = np.array([rng.choice(num_vertices, 3, replace=False) for _ in range(300)])
+    topo = build_topology(faces, num_vertices)
+    pairs = sorted({tuple(sorted((int(f[k]), int(f[(k + 1) % 3])))) for f in faces for k in range(3)})
+    index = {p: i for i, p in enumerate(pairs)}
+    np.testing.assert_array_equal(topo["edges"], np.array(pairs))
+    opposite = [[index[tuple(sorted((int(f[(k + 1) % 3]), int(f[(k + 2) % 3]))))] for k in range(3)] for f in faces]
+    np.testing.assert_array_equal(topo["face_edges"], opposite)
+    src = np.array([p[0] for p in pairs] + [p[1] for p in pairs])
+    dst = np.array([p[1] for p in pairs] + [p[0] for p in pairs])
+    order = np.lexsort((dst, src))
+    np.testing.assert_array_equal(topo["src"], src[order])
+    np.testing.assert_array_equal(topo["dst"], dst[order])
+    np.testing.assert_array_equal(topo["edge_of"], np.r_[np.arange(len(pairs)), np.arange(len(pairs))][order])
+    np.testing.assert_array_equal(topo["degree"], np.bincount(src, minlength=num_vertices))
+    assert all(a.dtype == np.int32 for a in topo.values())
