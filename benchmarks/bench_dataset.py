@@ -2,6 +2,7 @@
 jaxmesh calls, and a loop of Open3D's Laplacian filter, in one run.
 
     .venv/bin/python benchmarks/bench_dataset.py [--count 200] [--data DIR] [--batch-size N] [--ladder R]
+                                                 [--method NAME] [--variants ...]
 
 **The dataset** (made once, kept in --data): ``--count`` distinct meshes of
 1k–60k vertices from the shared meshes (../shared/meshes), each a source
@@ -9,7 +10,8 @@ mesh decimated (fast-simplification, quadric) or Loop-subdivided then
 decimated to a target vertex count drawn log-uniform in [1000, 60000], with
 isotropic Gaussian noise of 0.2 mean edge lengths; binary PLY.
 
-**The job**: 10 umbrella (Laplacian) steps, λ = 0.5, on every mesh, read
+**The job**: 10 umbrella (Laplacian) steps, λ = 0.5 (``--method NAME``: that method at
+its registry defaults, for the jaxmesh variants), on every mesh, read
 from and written to disk:
 
 * *runner*: :func:`jaxmesh.dataset.denoise_files` with its defaults (the umbrella
@@ -100,7 +102,13 @@ def _compile_listener(box: dict):
     jax.monitoring.register_event_duration_secs_listener(on_event)
 
 
-def run_variant(name: str, data: Path, out: Path, batch_size: int, ladder: float) -> dict:
+def _job(method: str) -> dict:
+    """The method's parameters in the job: the umbrella flow's 10 steps of λ = 0.5, else the registry's defaults."""
+    return {"iterations": ITERATIONS, "lam": LAM} if method == "umbrella_flow" else {}
+
+
+def run_variant(name: str, data: Path, out: Path, batch_size: int, ladder: float,
+                method: str = "umbrella_flow") -> dict:
     files = sorted(data.glob("*.ply"))
     out.mkdir(parents=True, exist_ok=True)
     comp = {"count": 0, "seconds": 0.0}
@@ -130,13 +138,13 @@ def run_variant(name: str, data: Path, out: Path, batch_size: int, ladder: float
             if name == "runner-previous":      # the former defaults: batches of 16, ladder 2^¼
                 batch_size, ladder = 16, 2 ** 0.25
             pack = False if name in ("runner-padded", "runner-previous") else None
-            s = denoise_files([str(data)], out, "umbrella_flow", {"iterations": ITERATIONS, "lam": LAM},
+            s = denoise_files([str(data)], out, method, _job(method),
                               batch_size=batch_size, ladder=ladder, overwrite=True, pack=pack)
             extra |= {"batch_size": batch_size or "default", "ladder": round(ladder, 4),
                       "padding_waste": round(s.waste, 3), "failed": s.failed, "batch_shapes": s.compiles}
         else:
             for p in files:
-                m = denoise_in_unit_frame(jaxmesh.load(str(p)), "umbrella_flow", iterations=ITERATIONS, lam=LAM)
+                m = denoise_in_unit_frame(jaxmesh.load(str(p)), method, **_job(method))
                 jaxmesh.save(m, str(out / p.name), overwrite=True)
     seconds = time.perf_counter() - start
     return {"variant": name, "meshes": len(files), "seconds": round(seconds, 2),
@@ -162,12 +170,15 @@ def main() -> None:
     ap.add_argument("--variants", nargs="*",
                     default=["runner", "runner-padded", "runner-previous", "runner-xla-defaults", "loop", "open3d"])
     ap.add_argument("--repeat", type=int, default=3, help="runs of each fast variant, interleaved (medians)")
+    ap.add_argument("--method", default="umbrella_flow",
+                    help="the runner's and the loop's method (default umbrella_flow, 10 steps of λ = 0.5, which "
+                         "Open3D's filter matches; any other runs at the registry's defaults)")
     ap.add_argument("--variant", help=argparse.SUPPRESS)
     args = ap.parse_args()
     data = args.data / f"in{args.count}"
     if args.variant:
-        print(json.dumps(run_variant(args.variant, data, args.data / f"out-{args.variant}", args.batch_size,
-                                     args.ladder)))
+        print(json.dumps(run_variant(args.variant, data, args.data / f"out-{args.variant}", args.batch_size, args.ladder,
+                                     args.method)))
         return
     t = time.perf_counter()
     paths = make_dataset(data, args.count)
@@ -184,7 +195,7 @@ def main() -> None:
             if rep and name == "loop":
                 continue
             os.sync()                   # the previous variant's 200 written files do not land in this one
-            cmd = [sys.executable, __file__, "--variant", name, "--count", str(args.count), "--data",
+            cmd = [sys.executable, __file__, "--variant", name, "--method", args.method, "--count", str(args.count), "--data",
                    str(args.data), "--ladder", str(args.ladder)]
             cmd += [] if args.batch_size is None else ["--batch-size", str(args.batch_size)]
             res = subprocess.run(cmd, capture_output=True, text=True)

@@ -13,7 +13,7 @@ Three kinds of batch:
   every operator leaves them at 0.  :func:`unpad` cuts the results back.
 * **different meshes, packed**: :func:`pack_batch` joins them into one disjoint
   union (no padding to the largest), padded inertly as above; a method with no
-  quantity over the whole mesh (``Method.local``) runs on it once for all
+  quantity over the whole mesh but its unit (``Method.packable``) runs on it once for all
   (:func:`jaxmesh.denoise.denoise_packed`), and :func:`unpack` cuts it back.
 
 :func:`shard` lays a batch's leading axis over the local devices with
@@ -190,7 +190,7 @@ def pack_batch(meshes: Sequence[Mesh], pad_to: tuple[int, int, int] | None = Non
     union's topology is the one :meth:`Mesh.from_arrays` builds from the concatenated
     arrays (edges and directed edges stay sorted).  It is then padded inertly, as
     :func:`pad_batch` pads (one padding vertex and edge at least).  A method with no
-    reduction over the whole mesh (``Method.local``) run on the union in each mesh's own
+    reduction over the whole mesh (``Method.packable``) run on the union in each mesh's own
     frame (:func:`jaxmesh.denoise.packed_run`) gives every mesh its own result, with no
     padding to the largest mesh and one call for all.
 

@@ -20,6 +20,7 @@ __all__ = [
     "edge_vectors",
     "edge_lengths",
     "mean_edge_length",
+    "segment_mean_edge_length",
     "face_corners",
     "face_areas",
     "face_normals",
@@ -70,6 +71,24 @@ def mean_edge_length(mesh: Mesh) -> Float[Array, "*batch"]:
         One value per mesh, (*batch)."""
     real = (mesh.edges[:, 0] != mesh.edges[:, 1]).astype(mesh.dtype)
     return jnp.sum(edge_lengths(mesh) * lift(real, mesh.vertices.ndim - 1), axis=-1) / jnp.maximum(jnp.sum(real), 1)
+
+
+def segment_mean_edge_length(mesh: Mesh, segment, segments: int) -> Float[Array, " S"]:
+    """:func:`mean_edge_length` of each mesh of a disjoint union (:func:`jaxmesh.batch.pack_batch`):
+    l_bar_k = (1/|E_k|) sum_{e_ij in E_k} ||e_ij||, E_k the edges of segment k, self-loops
+    (the padding) not counted; 0 for a segment without edges.
+
+    Arguments:
+        mesh: the union (single: vertices (V, 3)).
+        segment: the mesh each vertex belongs to, (V,) ints in [0, segments).
+        segments: the number of segments (static).
+
+    Returns:
+        One value per segment, (segments,)."""
+    real = (mesh.edges[:, 0] != mesh.edges[:, 1]).astype(mesh.dtype)
+    of = segment[mesh.edges[:, 0]]
+    total = segment_sum_scalars(edge_lengths(mesh) * real, of, segments)
+    return total / jnp.maximum(segment_sum_scalars(real, of, segments), 1)
 
 
 def face_corners(mesh: Mesh) -> Float[Array, "*batch F 3 3"]:

@@ -101,12 +101,13 @@ def test_pack_batch_is_the_disjoint_union_and_unpacks_exactly(three_meshes):
         pack_batch([])
 
 
-LOCAL = sorted(n for n, m in METHODS.items() if m.local)
+PACKABLE = sorted(n for n, m in METHODS.items() if m.packable)
 
 
-@pytest.mark.parametrize("name", LOCAL)
-def test_a_local_method_on_the_union_gives_each_mesh_its_own_result(three_meshes, name):
-    """``Method.local`` is honest: each mesh of the union, in its own frame, gets what
+@pytest.mark.parametrize("name", PACKABLE)
+def test_a_packable_method_on_the_union_gives_each_mesh_its_own_result(three_meshes, name):
+    """``Method.packable`` is honest (``local``, or one ``unit`` scaled to 1 per mesh): each
+    mesh of the union, in its own frame, gets what
     denoise_in_unit_frame gives it alone; padding stays inert; jit equals eager."""
     meshes = _spread(three_meshes)
     packed = pack_batch(meshes, segments=6)
@@ -132,8 +133,8 @@ def test_a_float32_union_matches_single_float32_calls(three_meshes):
 
 def test_methods_with_a_global_quantity_are_refused(three_meshes):
     packed = pack_batch(three_meshes)
-    assert {"umbrella_flow", "taubin", "hc", "kernel", "cotangent"} <= set(LOCAL)
-    for name in ("bilateral", "cauchy_diffusion", "impulse_repair", "cotangent_implicit"):
+    assert {"umbrella_flow", "taubin", "hc", "kernel", "cotangent", "bilateral"} <= set(PACKABLE)
+    for name in ("cauchy_diffusion", "geometric", "impulse_repair", "cotangent_implicit", "l0"):
         with pytest.raises(ValueError, match="reduces over the whole mesh"):
             denoise_packed(packed, name)
 

@@ -83,7 +83,7 @@ def test_packed_runs_equal_per_mesh_calls(tmp_path, method, params):
 
 def test_pack_is_refused_where_it_cannot_run(tmp_path):
     paths = write_dataset(tmp_path / "in", 1)
-    for method, kw, why in (("bilateral", {}, "reduces over the whole mesh"), ("auto", {}, "mesh by mesh"),
+    for method, kw, why in (("cauchy_diffusion", {}, "reduces over the whole mesh"), ("auto", {}, "mesh by mesh"),
                             ("taubin", {"params": {"lam": "auto"}}, "tuned per mesh"),
                             ("taubin", {"batch_size": 2}, "not both")):
         with pytest.raises(ValueError, match=why):

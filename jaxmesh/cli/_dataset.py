@@ -25,7 +25,8 @@ def dataset_arguments(p) -> None:
                         "more padding)")
     p.add_argument("--pack", action=argparse.BooleanOptionalAction, default=None,
                    help="run the meshes as disjoint unions of up to 61,440 vertices (--out-dir; default: for the "
-                        "methods with no whole-mesh quantity, such as umbrella_flow, taubin and kernel, when "
+                        "methods with no whole-mesh quantity but their unit, such as umbrella_flow, taubin, kernel and "
+                        "bilateral, when "
                         "--batch-size is not given); --no-pack: padded batches")
     p.add_argument("--report", metavar="FILE", help="append one JSON line per mesh to FILE (--out-dir)")
     p.add_argument("--suffix", metavar=".EXT", help="output format for --out-dir (default: the input's)")

@@ -1,5 +1,5 @@
 """The dataset runner's batched path: meshes packed into disjoint unions (methods with
-``Method.local``) or padded into batches on the reader thread (each mesh's far vertices
+``Method.packable``) or padded into batches on the reader thread (each mesh's far vertices
 found there too), one program per (padded size, batch size) compiled ahead on two
 threads, each batch's outcomes; and what an input's fate is."""
 

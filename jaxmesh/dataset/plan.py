@@ -1,6 +1,6 @@
 """Planning a dataset run: which files, their sizes, and the packed unions or padded batch shapes.
 
-**Unions** (methods with ``Method.local``): :func:`plan_packs` puts the meshes,
+**Unions** (methods with ``Method.packable``): :func:`plan_packs` puts the meshes,
 largest first, into the first union with room (first-fit decreasing) for at most
 :data:`PACK_VERTICES` vertices and :data:`PACK_SEGMENTS` − 1 meshes; at most one union
 is left half empty.  Each union is padded to the ladder sizes (below) of its totals,

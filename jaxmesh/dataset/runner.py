@@ -172,7 +172,7 @@ def denoise_files(inputs: Sequence[str | Path], out_dir: str | Path, method: str
             (against ``reference`` when given, else blind) and apply that setting to
             all (default 0: each mesh tuned blind by itself).
         pack: run the meshes as disjoint unions (:func:`~jaxmesh.dataset.plan.plan_packs`), not
-            padded batches.  Default: when the method is ``local``, no parameter is tuned per
+            padded batches.  Default: when the method is ``packable``, no parameter is tuned per
             mesh and no ``batch_size`` is given; True where it cannot is an error.
 
     Returns:
@@ -237,7 +237,7 @@ def _packs(method: str, params: dict, pack: bool | None, batch_size: int | None)
     from ..denoise import METHODS
 
     why = ("method 'auto' runs mesh by mesh" if method == "auto" else
-           f"{method} reduces over the whole mesh (not Method.local)" if not METHODS[method].local else
+           f"{method} reduces over the whole mesh (not Method.packable)" if not METHODS[method].packable else
            "parameters tuned per mesh need padded batches" if tuned_keys(params) else None)
     if pack is None:
         return why is None and batch_size is None

@@ -1,13 +1,20 @@
 """Denoising a packed batch: many meshes as one disjoint union, each in its own frame.
 
 A method with no reduction over the whole mesh (``Method.local``: the umbrella flow,
-Taubin, HC, the kernel flow) run on the union of meshes (:func:`jaxmesh.batch.pack_batch`)
-moves each vertex by what its own mesh holds.  Run in each mesh's unit frame
-(:func:`~jaxmesh.transforms.segment_unit_frame`), v' = (v − c_k) / s_k for a vertex of
-mesh k, it gives every mesh the result :func:`~jaxmesh.denoise.denoise_in_unit_frame`
-gives it alone, in one call over the meshes' own vertices (no padding to the largest).
-Methods with a global quantity (a mean edge length, a mean area, a mixture fitted to the
-whole mesh) would mix the meshes: they are refused.
+Taubin, HC, the kernel flow, the explicit cotangent flow) run on the union of meshes
+(:func:`jaxmesh.batch.pack_batch`) moves each vertex by what its own mesh holds.  Run in
+each mesh's unit frame (:func:`~jaxmesh.transforms.segment_unit_frame`), v' = (v − c_k) / s_k
+for a vertex of mesh k, it gives every mesh the result
+:func:`~jaxmesh.denoise.denoise_in_unit_frame` gives it alone, in one call over the
+meshes' own vertices (no padding to the largest).
+
+A method whose one whole-mesh quantity is the unit of its parameters (``Method.unit``:
+bilateral denoising, σ in mean edge lengths ℓ̄) is scale-equivariant: mesh k is further
+divided by its own ℓ̄_k (in its unit frame), so that every mesh has ℓ̄ = 1, and so does the
+union (a mean over the edges of means of 1); the result, mapped back, is the mesh's own up
+to rounding.  Methods with other global quantities (a mean area with ℓ̄, a mean gradient
+of the moving positions, a mixture fitted to the whole mesh, a solver's tolerance) would
+mix the meshes: they are refused.
 """
 
 from __future__ import annotations
@@ -15,10 +22,12 @@ from __future__ import annotations
 import functools
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array
 
 from ..batch import PackedBatch, unpack
+from ..geometry import segment_mean_edge_length
 from ..mesh import Mesh
 from ..transforms import segment_unit_frame
 from .registry import METHODS, Method, as_method, diverged
@@ -26,12 +35,17 @@ from .registry import METHODS, Method, as_method, diverged
 __all__ = ["packed_run", "run_packed", "denoise_packed"]
 
 
+_UNITS = {"mean_edge_length": segment_mean_edge_length}
+
+
 def _local(method: str | Method) -> Method:
     m = as_method(method)
-    if not m.local:
+    if not m.packable:
         raise ValueError(f"{m.name} reduces over the whole mesh, so it cannot run on a packed batch (packable: "
-                         f"{', '.join(sorted(k for k, v in METHODS.items() if v.local))}); pad the batch "
+                         f"{', '.join(sorted(k for k, v in METHODS.items() if v.packable))}); pad the batch "
                          "instead (jaxmesh.batch.pad_batch)")
+    if m.unit is not None and m.unit not in _UNITS:
+        raise ValueError(f"{m.name}: unit {m.unit!r} is not one of {sorted(_UNITS)}")
     if m.aux:
         raise ValueError(f"{m.name} needs per-mesh auxiliary inputs; it cannot run on a packed batch")
     return m
@@ -47,13 +61,17 @@ def packed_run(mesh: Mesh, segment, far, segments: int, method: str | Method, **
         segment: the mesh of each vertex, (V,) (:attr:`PackedBatch.segment`).
         far: each mesh's far vertices, (V,) (:attr:`PackedBatch.far`).
         segments: the number of segments (static).
-        method: a registry name or :class:`~jaxmesh.denoise.Method` with ``local`` set.
+        method: a registry name or :class:`~jaxmesh.denoise.Method` that is ``packable``.
         **params: the method's parameters, one value for every mesh.
 
     Returns:
         (the denoised union, a bool per segment: diverged)."""
     m = _local(method)
     centre, scale = segment_unit_frame(mesh, far, segment, segments)
+    if m.unit is not None:            # each mesh's own unit in its unit frame, made 1
+        unit = _UNITS[m.unit](mesh.with_vertices((mesh.vertices - centre[segment]) / scale[segment][:, None]),
+                              segment, segments)
+        scale = scale * jnp.where(unit > 0, unit, 1)
     c, s = centre[segment], scale[segment][:, None]
     work = mesh.with_vertices((mesh.vertices - c) / s)
     out = m(work, throw=False, **params)
@@ -74,7 +92,8 @@ def denoise_packed(packed: PackedBatch, method: str | Method, **params) -> list[
 
     Arguments:
         packed: a :class:`~jaxmesh.batch.PackedBatch` (:func:`~jaxmesh.batch.pack_batch`).
-        method: a method with ``local`` set (``umbrella_flow``, ``taubin``, ``hc``, ``kernel``).
+        method: a ``packable`` method (``umbrella_flow``, ``taubin``, ``hc``, ``kernel``,
+            ``cotangent``, ``bilateral``).
         **params: the method's parameters (defaults from the registry), one setting for all.
 
     Returns:

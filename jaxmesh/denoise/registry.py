@@ -100,6 +100,15 @@ class Method:
     #: no reduction over the whole mesh: on a disjoint union of meshes (each in its own
     #: frame) it gives each mesh its own result (:func:`jaxmesh.denoise.packed_run`)
     local: bool = False
+    #: the one whole-mesh quantity the method measures its parameters in, otherwise local
+    #: (``"mean_edge_length"``): on a union each mesh is scaled so that its own is 1, which
+    #: makes the union's 1 as well, so each mesh again gets its own result
+    unit: str | None = None
+
+    @property
+    def packable(self) -> bool:
+        """Whether the method runs on a packed union (``local``, or a ``unit`` to scale by)."""
+        return self.local or self.unit is not None
 
     def defaults(self) -> dict[str, Any]:
         return {k: p.default for k, p in self.params.items()}
@@ -279,7 +288,7 @@ METHODS: dict[str, Method] = {
             "sigma_c": Param(1.0, "continuous", "closeness σ_c in mean edge lengths", (0.1, 10.0), True),
             "sigma_s": Param(1.0, "continuous", "similarity σ_s in mean edge lengths", (0.01, 10.0), True),
             "iterations": _it(3),
-        }, "bilateral mesh denoising", "Fleishman et al. 2003"),
+        }, "bilateral mesh denoising", "Fleishman et al. 2003", unit="mean_edge_length"),
         Method("bilateral_normal", bilateral_normal_filtering, _normal_filter_params(10),
                "bilateral filtering of face normals + vertex update (feature preserving)",
                "Zheng et al. 2011 (local); Sun et al. 2007 update"),
