@@ -38,7 +38,7 @@ __all__ = ["packed_run", "run_packed", "denoise_packed"]
 _UNITS = {"mean_edge_length": segment_mean_edge_length}
 
 
-def _local(method: str | Method) -> Method:
+def _packable(method: str | Method) -> Method:
     m = as_method(method)
     if not m.packable:
         raise ValueError(f"{m.name} reduces over the whole mesh, so it cannot run on a packed batch (packable: "
@@ -66,7 +66,7 @@ def packed_run(mesh: Mesh, segment, far, segments: int, method: str | Method, **
 
     Returns:
         (the denoised union, a bool per segment: diverged)."""
-    m = _local(method)
+    m = _packable(method)
     centre, scale = segment_unit_frame(mesh, far, segment, segments)
     if m.unit is not None:            # each mesh's own unit in its unit frame, made 1
         unit = _UNITS[m.unit](mesh.with_vertices((mesh.vertices - centre[segment]) / scale[segment][:, None]),
@@ -98,7 +98,7 @@ def denoise_packed(packed: PackedBatch, method: str | Method, **params) -> list[
 
     Returns:
         The denoised meshes, in order."""
-    m = _local(method)
+    m = _packable(method)
     cont, statics = m.split(**params)
     out, bad = run_packed(packed.mesh, packed.segment, packed.far, cont, packed.segments, m, statics)
     bad = np.flatnonzero(np.asarray(bad)[:len(packed.num_vertices)])
