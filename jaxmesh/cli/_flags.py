@@ -49,7 +49,8 @@ def given_parameters(args) -> dict:
 def list_methods() -> int:
     print(f"{AUTO}: choose the method and its parameters blind (default) [jaxmesh.tune.choose_denoiser]")
     for name, m in METHODS.items():
-        print(f"{name}: {m.summary} [{m.reference}]")
+        packs = " (packed into disjoint unions by --out-dir)" if m.packable else ""
+        print(f"{name}: {m.summary} [{m.reference}]{packs}")
         for pname, p in m.params.items():
             if p.kind != "aux":
                 print(f"    --{pname.replace('_', '-'):<18} {p.default!s:<12} {p.help}")

@@ -105,6 +105,8 @@ def test_list_methods_and_demo(capsys, tmp_path):
     assert main(["denoise", "--list-methods"]) == 0
     listing = capsys.readouterr().out
     assert all(f"{name}:" in listing for name in METHODS)
+    heads = {ln.split(":")[0]: ln for ln in listing.splitlines() if not ln.startswith(" ")}
+    assert all(("(packed into disjoint unions" in heads[name]) == m.packable for name, m in METHODS.items())
     assert main(["demo", "--out", str(tmp_path), "--no-auto"]) == 0        # the blind default: the slow test
     out = capsys.readouterr().out
     rows = {ln.split()[0]: ln for ln in out.splitlines() if ln.startswith(("noisy", "kernel", "taubin"))}
