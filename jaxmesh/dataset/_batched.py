@@ -145,13 +145,20 @@ def run_batch(batch: Batch, meshes: list, prepared: Padded | None, method: str, 
                   else run_padded(pb.mesh, cont, far, method, statics))
         x, bad = np.asarray(x), np.asarray(bad)     # cut on the host: only the positions come back
         for j, (k, mesh) in enumerate(good):
-            far = np.flatnonzero(prepared.far[j])
-            why = f" (vertex {far[0]} lies far from the rest: a corrupt coordinate?)" if far.size else ""
-            results[k] = (Outcome(error=FloatingPointError(f"{method} diverged on this mesh with {params}{why}"))
-                          if bad[j] else Outcome(mesh.with_vertices(to_device(x[j, :mesh.num_vertices]))))
+            results[k] = _fate(mesh, x[j, :mesh.num_vertices], bad[j], prepared.far[j], method, params)
     tally.real += sum(mesh.num_vertices for _, mesh in good)
     tally.padded += shape[0] * pb.mesh.vertices.shape[0]
     return results
+
+
+def _fate(mesh: Mesh, x: np.ndarray, diverged, far: np.ndarray, method: str, params: dict) -> Outcome:
+    """One mesh's outcome from its denoised positions ``x`` and whether it ``diverged``
+    (naming its first ``far`` vertex, a (V,) mask, as the likely cause)."""
+    if not diverged:
+        return Outcome(mesh.with_vertices(to_device(x)))
+    far = np.flatnonzero(far)
+    why = f" (vertex {far[0]} lies far from the rest: a corrupt coordinate?)" if far.size else ""
+    return Outcome(error=FloatingPointError(f"{method} diverged on this mesh with {params}{why}"))
 
 
 def _run_packed_batch(prepared: Padded, method: str, params: dict, tally: Tally, compiled: dict,
@@ -168,12 +175,9 @@ def _run_packed_batch(prepared: Padded, method: str, params: dict, tally: Tally,
     x, bad = np.asarray(out.vertices), np.asarray(bad)     # only the positions come back
     start = 0
     for j, (k, mesh) in enumerate(good):
-        v = mesh.num_vertices
-        far = np.flatnonzero(prepared.far[start:start + v])
-        why = f" (vertex {far[0]} lies far from the rest: a corrupt coordinate?)" if far.size else ""
-        results[k] = (Outcome(error=FloatingPointError(f"{method} diverged on this mesh with {params}{why}"))
-                      if bad[j] else Outcome(mesh.with_vertices(to_device(x[start:start + v]))))
-        start += v
+        end = start + mesh.num_vertices
+        results[k] = _fate(mesh, x[start:end], bad[j], prepared.far[start:end], method, params)
+        start = end
     tally.real += start
     tally.padded += shape[0]
     return results
