@@ -177,8 +177,8 @@ def main() -> None:
     args = ap.parse_args()
     data = args.data / f"in{args.count}"
     if args.variant:
-        print(json.dumps(run_variant(args.variant, data, args.data / f"out-{args.variant}", args.batch_size, args.ladder,
-                                     args.method)))
+        print(json.dumps(run_variant(args.variant, data, args.data / f"out-{args.variant}", args.batch_size,
+                                     args.ladder, args.method)))
         return
     t = time.perf_counter()
     paths = make_dataset(data, args.count)
@@ -195,8 +195,8 @@ def main() -> None:
             if rep and name == "loop":
                 continue
             os.sync()                   # the previous variant's 200 written files do not land in this one
-            cmd = [sys.executable, __file__, "--variant", name, "--method", args.method, "--count", str(args.count), "--data",
-                   str(args.data), "--ladder", str(args.ladder)]
+            cmd = [sys.executable, __file__, "--variant", name, "--method", args.method, "--count", str(args.count),
+                   "--data", str(args.data), "--ladder", str(args.ladder)]
             cmd += [] if args.batch_size is None else ["--batch-size", str(args.batch_size)]
             res = subprocess.run(cmd, capture_output=True, text=True)
             if res.returncode:

@@ -9,8 +9,8 @@ import numpy as np
 from ._private import lift
 from .mesh import Mesh
 
-__all__ = ["normalize", "bounding_box_center", "unit_frame", "segment_unit_frame", "to_frame", "from_frame", "far_mask", "far_vertices",
-           "FAR_RATIO", "FAR_SAMPLE"]
+__all__ = ["normalize", "bounding_box_center", "unit_frame", "segment_unit_frame", "to_frame", "from_frame", "far_mask",
+           "far_vertices", "FAR_RATIO", "FAR_SAMPLE"]
 
 #: a used vertex farther than this many times the median distance from the median position is far
 FAR_RATIO = 1e4

@@ -27,7 +27,7 @@ from .kernel_flow import (
 )
 from .vertex_rings import VertexRings, VertexTier, vertex_rings
 from .kde import kernel_density
-from .laplacian import hc_smoothing, umbrella_flow, taubin_smoothing
+from .laplacian import hc_smoothing, taubin_smoothing, umbrella_flow
 from .normal_filtering import FaceRings, face_rings, filter_normals, normal_filtering, ring_sum
 from .registry import METHODS, Method, Param, as_method, denoise, diverged
 from .framed import denoise_in_unit_frame

@@ -30,7 +30,7 @@ from .bilateral import bilateral_denoising
 from .curvature import cotangent_flow
 from .geometric_diffusion import geometric_diffusion
 from .kernel_flow import kernel_diffusion
-from .laplacian import BOUNDARY_MODES, hc_smoothing, umbrella_flow, taubin_smoothing
+from .laplacian import BOUNDARY_MODES, hc_smoothing, taubin_smoothing, umbrella_flow
 from .bilateral_normal import bilateral_normal_filtering
 from .face_graph import face_graph
 from .selection import hold

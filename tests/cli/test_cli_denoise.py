@@ -345,7 +345,8 @@ def test_out_dir_refuses_what_it_cannot_do(tmp_path, capsys):
                            (["--noise-model", "normal"], "--noise-model: not supported with --out-dir"),
                            (["--method", "kernel", "--tune-on", "2"], "--tune-on N tunes the parameters given"),
                            (["--tune"], "--tune needs a named method"),
-                           (["--method", "cauchy_diffusion", "--pack"], "cannot pack the meshes (pack=True, --pack): cauchy_diffusion"),
+                           (["--method", "cauchy_diffusion", "--pack"],
+                            "cannot pack the meshes (pack=True, --pack): cauchy_diffusion"),
                            (["--method", "taubin", "--pack", "--batch-size", "2"], "not both")):
         assert main(["denoise", "--out-dir", str(tmp_path / "o"), str(tmp_path)] + flags) == 1
         assert message in capsys.readouterr().err, flags
