@@ -24,10 +24,9 @@ def dataset_arguments(p) -> None:
                    help="ratio between padded mesh sizes (--out-dir; default √2; larger: fewer compiles, "
                         "more padding)")
     p.add_argument("--pack", action=argparse.BooleanOptionalAction, default=None,
-                   help="run the meshes as disjoint unions of up to 61,440 vertices (--out-dir; default: for the "
-                        "methods with no whole-mesh quantity but their unit, such as umbrella_flow, taubin, kernel and "
-                        "bilateral, when "
-                        "--batch-size is not given); --no-pack: padded batches")
+                   help="run the meshes as disjoint unions of up to 61,440 vertices (--out-dir; default for the "
+                        "methods --list-methods marks as packed, when --batch-size is not given); --no-pack: "
+                        "padded batches")
     p.add_argument("--report", metavar="FILE", help="append one JSON line per mesh to FILE (--out-dir)")
     p.add_argument("--suffix", metavar=".EXT", help="output format for --out-dir (default: the input's)")
     p.add_argument("--tune-on", type=int, default=0, metavar="N",

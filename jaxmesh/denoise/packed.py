@@ -68,12 +68,12 @@ def packed_run(mesh: Mesh, segment, far, segments: int, method: str | Method, **
         (the denoised union, a bool per segment: diverged)."""
     m = _packable(method)
     centre, scale = segment_unit_frame(mesh, far, segment, segments)
-    if m.unit is not None:            # each mesh's own unit in its unit frame, made 1
-        unit = _UNITS[m.unit](mesh.with_vertices((mesh.vertices - centre[segment]) / scale[segment][:, None]),
-                              segment, segments)
-        scale = scale * jnp.where(unit > 0, unit, 1)
     c, s = centre[segment], scale[segment][:, None]
     work = mesh.with_vertices((mesh.vertices - c) / s)
+    if m.unit is not None:            # each mesh's own unit in its unit frame, made 1
+        unit = _UNITS[m.unit](work, segment, segments)
+        u = jnp.where(unit > 0, unit, 1)[segment][:, None]
+        work, s = work.with_vertices(work.vertices / u), s * u
     out = m(work, throw=False, **params)
     return mesh.with_vertices(out.vertices * s + c), diverged(work, out, far=far, segment=segment, segments=segments)
 
