@@ -25,31 +25,37 @@ boundary; ``"average"`` (default) uses u = ½(u_N + u_D), as Crane et al. recomm
 one away from it, and their average keeps them nearly orthogonal to it.  A source on
 the boundary has u_D = 0 and gets the Neumann field (X does not depend on u's scale).
 
-Both systems go through :func:`jaxmesh.linalg.mesh_solve`: factored once per mesh
+Both systems go through :func:`jaxmesh.linalg.sparse_solve`: factored once per mesh
 (and per boundary condition), every source is one more right-hand side, and the
 distances are differentiable in ``mesh.vertices`` (and ``t``) through implicit
-differentiation of both solves.
+differentiation of both solves.  On concrete inputs the matrices are built once for
+every block of sources and the solves are called from the host
+(:func:`jaxmesh.linalg.host_solve`) between compiled stages, the same functions: a
+program with a host callback inside is compiled again in every process, these are
+kept in the persistent compilation cache.
 """
 
 from __future__ import annotations
 
 import functools
-from typing import Literal
+from collections.abc import Callable
+from typing import Literal, NamedTuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float, Int
 
+from ._exported import stored_jit
 from ._private import filled_mass, safe_norm, segment_sum_scalars
 from .geometry import edge_lengths, face_areas, face_corners, hat_gradients, mean_edge_length
 from .intrinsic import (IntrinsicTriangulation, cotangents_from_lengths, intrinsic_delaunay, layout_from_lengths,
                         replay_flips)
-from .linalg import sparse_solve
+from .linalg import host_solve, sparse_solve
 from .mesh import Mesh
 from .operators import cotangent_weights
 
-__all__ = ["heat_distances", "heat_components", "BOUNDARY_CONDITIONS", "boundary_vertices"]
+__all__ = ["heat_distances", "heat_solver", "heat_components", "BOUNDARY_CONDITIONS", "boundary_vertices"]
 
 #: :func:`~jaxmesh.geometry.face_areas` as one compiled program for host callers (eagerly it is a
 #: dozen small programs, each compiled on first use in every process)
@@ -81,6 +87,7 @@ def heat_distances(
 ) -> Float[Array, "S V"]:
     """Heat-method geodesic distances (S, V) from ``sources`` (module docstring),
     differentiable in ``mesh.vertices`` and ``t``; jittable given a ``triangulation``.
+    Many calls on one mesh: :func:`heat_solver` builds the set-up once.
 
     Distances to a vertex in another connected component are meaningless (the
     statistic :func:`jaxmesh.stats.heat_geodesics` sets them to inf).
@@ -101,18 +108,37 @@ def heat_distances(
 
     Returns:
         Distances, (S, V), in the mesh's length units."""
+    _check_block(block)
+    _check_boundary(boundary)
+    return heat_solver(mesh, t, boundary=boundary, intrinsic=intrinsic, triangulation=triangulation,
+                       backend=backend, components=components)(sources, block=block)
+
+
+def heat_solver(
+    mesh: Mesh, t: float | Array | None = None, *,
+    boundary: Literal["average", "neumann", "dirichlet"] = "average", intrinsic: bool = True,
+    triangulation: IntrinsicTriangulation | None = None,
+    backend: Literal["auto", "cholesky", "lu"] = "auto", components: Int[Array, " V"] | None = None,
+) -> Callable[..., Float[Array, "S V"]]:
+    """:func:`heat_distances` on one mesh for source after source: the intrinsic triangulation,
+    the components and (on concrete inputs) both steps' matrices are built here once, and each
+    call of the returned ``distances(sources, block=64)`` costs its solves (the factors are
+    cached by :mod:`jaxmesh.linalg`).  The arguments are :func:`heat_distances`'s.
+
+    Arguments:
+        mesh: a single mesh.
+        t: the diffusion time (default ℓ̄²).
+        boundary: ``"average"`` (default), ``"neumann"`` or ``"dirichlet"``.
+        intrinsic: run on the intrinsic Delaunay triangulation (default).
+        triangulation: the intrinsic triangulation to use (default: built from ``mesh``).
+        backend: the sparse solver, as :func:`jaxmesh.linalg.sparse_solve`.
+        components: :func:`heat_components` of ``mesh`` (default: computed).
+
+    Returns:
+        ``distances(sources, block=64)``: distances (S, V) from the (S,) source indices."""
     if mesh.vertices.ndim != 2:
         raise ValueError("heat_distances needs a single mesh (jax.vmap over a batch)")
-    if boundary not in BOUNDARY_CONDITIONS:
-        raise ValueError(f"boundary must be one of {BOUNDARY_CONDITIONS}, got {boundary!r}")
-    if isinstance(block, bool) or not isinstance(block, int) or block < 1:
-        raise ValueError(f"block must be a positive int, got {block!r}")
-    sources = jnp.atleast_1d(jnp.asarray(sources))
-    if sources.ndim != 1 or not jnp.issubdtype(sources.dtype, jnp.integer):
-        raise ValueError(f"sources must be a 1-D array of vertex indices, got shape {sources.shape}")
-    if not isinstance(sources, jax.core.Tracer) and sources.size and (
-            int(np.asarray(sources).min()) < 0 or int(np.asarray(sources).max()) >= mesh.num_vertices):
-        raise ValueError(f"sources must lie in [0, {mesh.num_vertices}), got {np.asarray(sources)}")
+    _check_boundary(boundary)
     if intrinsic:
         if triangulation is None:
             if isinstance(mesh.vertices, jax.core.Tracer):
@@ -126,18 +152,45 @@ def heat_distances(
         triangulation.faces, triangulation.face_edges, triangulation.flips, triangulation.pairs,
         triangulation.edge_pair))
     labels = heat_components(mesh) if components is None else jnp.asarray(components)
-    count = sources.shape[0]
-    if count == 0:
-        return jnp.zeros((0, mesh.num_vertices), mesh.dtype)
-    if count <= block:
-        return _checked(lambda: _heat(mesh, sources, t, arrays, labels, boundary=boundary, backend=backend), mesh)
-    # one compiled block at a time (the last padded with its final source): the program is one block's,
-    # whatever the count, and no two blocks' (F, block, 3) intermediates are alive at once
-    padded = jnp.concatenate([sources, jnp.broadcast_to(sources[-1:], (-count % block,))])
-    out = [_checked(lambda lo=lo: _heat(mesh, padded[lo:lo + block], t, arrays, labels, boundary=boundary,
-                                        backend=backend), mesh)
-           for lo in range(0, padded.shape[0], block)]
-    return jnp.concatenate(out, axis=0)[:count]
+    traced = any(isinstance(z, jax.core.Tracer) for z in (mesh.vertices, t))
+    # concrete: the matrices once, the solves called from the host
+    systems = None if traced else _Systems(*_systems_program(mesh, t, arrays, boundary=boundary))
+
+    def run(part):
+        if systems is None or isinstance(part, jax.core.Tracer):
+            return _heat(mesh, part, t, arrays, labels, boundary=boundary, backend=backend)
+        return _heat_on_host(systems, part, labels, boundary=boundary, backend=backend)
+
+    def distances(sources, block: int = 64) -> Float[Array, "S V"]:
+        _check_block(block)
+        xp = jnp if isinstance(sources, jax.core.Tracer) else np      # concrete: no eager programs
+        sources = xp.atleast_1d(xp.asarray(sources))
+        if sources.ndim != 1 or not xp.issubdtype(sources.dtype, xp.integer):
+            raise ValueError(f"sources must be a 1-D array of vertex indices, got shape {sources.shape}")
+        if xp is np and sources.size and (sources.min() < 0 or sources.max() >= mesh.num_vertices):
+            raise ValueError(f"sources must lie in [0, {mesh.num_vertices}), got {sources}")
+        count = sources.shape[0]
+        if count == 0:
+            return jnp.zeros((0, mesh.num_vertices), mesh.dtype)
+        if count <= block:
+            return _checked(lambda: run(sources), mesh)
+        # one block at a time (the last padded with its final source): the programs are one block's,
+        # whatever the count, and no two blocks' (F, block, 3) intermediates are alive at once
+        padded = xp.concatenate([sources, xp.broadcast_to(sources[-1:], (-count % block,))])
+        out = [_checked(lambda lo=lo: run(padded[lo:lo + block]), mesh) for lo in range(0, padded.shape[0], block)]
+        return jnp.concatenate(out, axis=0)[:count]
+
+    return distances
+
+
+def _check_boundary(boundary) -> None:
+    if boundary not in BOUNDARY_CONDITIONS:
+        raise ValueError(f"boundary must be one of {BOUNDARY_CONDITIONS}, got {boundary!r}")
+
+
+def _check_block(block) -> None:
+    if isinstance(block, bool) or not isinstance(block, int) or block < 1:
+        raise ValueError(f"block must be a positive int, got {block!r}")
 
 
 def heat_components(mesh: Mesh) -> Int[Array, " V"]:
@@ -168,7 +221,7 @@ def _checked(run, mesh: Mesh):
     underflowed, and naming a system the sparse solver could not factor inside the compiled program."""
     try:
         distances, lost = run()
-    except jax.errors.JaxRuntimeError as err:
+    except (jax.errors.JaxRuntimeError, ValueError) as err:
         if "positive definite" not in str(err) and "singular" not in str(err):
             raise
         raise ValueError("heat_distances: the heat method's linear systems cannot be factored on this mesh "
@@ -184,12 +237,28 @@ def _checked(run, mesh: Mesh):
     return distances
 
 
-@functools.partial(jax.jit, static_argnames=("boundary", "backend"))
-def _heat(mesh: Mesh, sources, t, triangulation, labels, *, boundary: str, backend: str):
-    """The numerical part of :func:`heat_distances` for one block of sources (all solved
-    together), compiled once per shape (the triangulation's arrays are arguments, so a new
-    one of the same sizes reuses it): the distances, NaN for a source whose heat flow
-    underflowed (u = 0 somewhere in its component), and which did."""
+class _Systems(NamedTuple):
+    """What every block of sources shares (:func:`_systems`): the triangles, their areas and
+    hat gradients, the pairs and weights of the Laplacian, the lumped mass, and the step 1 and
+    step 3 matrices' diagonals and off-diagonal values on those pairs (the Dirichlet ones
+    equal to the Neumann ones under ``boundary="neumann"``)."""
+    faces: Array
+    area: Array
+    grad: Array
+    pairs: Array
+    weights: Array
+    positive: Array
+    on: Array
+    heat_diag: Array
+    heat_off: Array
+    dir_diag: Array
+    dir_off: Array
+    poisson_diag: Array
+
+
+def _systems(mesh: Mesh, t, triangulation, *, boundary: str) -> _Systems:
+    """Steps 1 and 3's matrices (module docstring), on the intrinsic triangulation's arrays
+    (``triangulation``) or the mesh's own triangles (None)."""
     n, dtype = mesh.num_vertices, mesh.dtype
     if triangulation is not None:
         faces, face_edges, flips, pairs, edge_pair = triangulation
@@ -207,48 +276,112 @@ def _heat(mesh: Mesh, sources, t, triangulation, labels, *, boundary: str, backe
         clamp = True                   # see step 1 of the module docstring
     ell = mean_edge_length(mesh)
     t = ell ** 2 if t is None else t
-    flat = faces.reshape(-1)
-    mass = segment_sum_scalars(jnp.repeat(area / 3, 3), flat, n)
+    mass = segment_sum_scalars(jnp.repeat(area / 3, 3), faces.reshape(-1), n)
     positive = mass > 0
     mass = filled_mass(mass)                                          # vertices without area: the mean
     e0, e1 = pairs[:, 0], pairs[:, 1]
-
-    def row_sums(w):
-        return jnp.zeros(n, dtype).at[e0].add(w).at[e1].add(w)
-
-    def solve(diag, off, rhs, laplacian=False):
-        return sparse_solve(pairs, diag, off, rhs, backend=backend, laplacian=laplacian)
-
     heat_w = jnp.maximum(c, 0) if clamp else c
-    heat_diag, heat_off = mass + t * row_sums(heat_w), -t * heat_w
-    if boundary != "neumann":
+    heat_diag = mass + t * jnp.zeros(n, dtype).at[e0].add(heat_w).at[e1].add(heat_w)
+    heat_off = -t * heat_w
+    if boundary == "neumann":
+        on, dir_diag, dir_off = jnp.zeros(n, bool), heat_diag, heat_off
+    else:
         on = boundary_vertices(mesh)
         dir_diag = jnp.where(on, 1.0, heat_diag)
         dir_off = jnp.where(on[e0] | on[e1], 0.0, heat_off)
+    # (L + G + εM) φ = b, step 3; εM = 10⁻¹² M/ℓ̄² keeps it definite where L has zero rows (zero-area faces)
+    return _Systems(faces, area, grad, pairs, c, positive, on, heat_diag, heat_off, dir_diag, dir_off,
+                    1e-12 * mass / ell ** 2)
 
-    src, k = sources, sources.shape[0]
-    delta = jnp.zeros((n, k), dtype).at[src, jnp.arange(k)].set(1.0)
-    if boundary == "neumann":
-        u = solve(heat_diag, heat_off, delta)
-    else:
-        u = solve(dir_diag, dir_off, jnp.where(on[:, None], 0.0, delta))
-        if boundary == "average":
-            u_n = solve(heat_diag, heat_off, delta)
-            # a boundary source has u_D = 0: its field is the Neumann one
-            u = jnp.where(on[src][None, :], u_n, 0.5 * (u + u_n))
+
+def _deltas(n: int, sources, dtype, on):
+    """Step 1's right-hand sides: δ_s per column (n, k), and the same with 0 on the boundary."""
+    k = sources.shape[0]
+    delta = jnp.zeros((n, k), dtype).at[sources, jnp.arange(k)].set(1.0)
+    return delta, jnp.where(on[:, None], 0.0, delta)
+
+
+def _divergence(s: _Systems, u, u_n, sources, labels, *, boundary: str):
+    """Steps 2 and 3's right-hand side from step 1's fields: ``u`` (Dirichlet, or Neumann under
+    ``boundary="neumann"``) and ``u_n`` (Neumann, for ``"average"``); the grounded right-hand
+    side b (n, k) and which sources' flow underflowed (k,)."""
+    n, dtype, k = s.heat_diag.shape[0], s.heat_diag.dtype, sources.shape[0]
+    if boundary == "average":
+        # a boundary source has u_D = 0: its field is the Neumann one
+        u = jnp.where(s.on[sources][None, :], u_n, 0.5 * (u + u_n))
     # u ≤ 0 where the flow reaches in exact arithmetic: a vertex with area, in the source's component
     # (not on a Dirichlet boundary, where u_D = 0; not a vertex of degenerate faces only, with no weights)
-    zero = (u <= 0) & positive[:, None] if boundary != "dirichlet" else (u <= 0) & (positive & ~on)[:, None]
-    lost = jnp.any((labels[:, None] == labels[src][None, :]) & zero, axis=0)          # (k,)
-    gu = jnp.einsum("fks,fkd->fsd", u[faces], grad)                   # ∇u per face, (F, k, 3)
+    reach = s.positive if boundary != "dirichlet" else s.positive & ~s.on
+    lost = jnp.any((labels[:, None] == labels[sources][None, :]) & (u <= 0) & reach[:, None], axis=0)   # (k,)
+    gu = jnp.einsum("fks,fkd->fsd", u[s.faces], s.grad)                   # ∇u per face, (F, k, 3)
     # scaled before normalising: far from the source u is ~1e-21 and |∇u|² underflows in float32
     # (X does not depend on the scale, so the scale carries no gradient)
     scale = jax.lax.stop_gradient(jnp.max(jnp.abs(gu), axis=-1, keepdims=True))
     gu = gu / jnp.where(scale > 0, scale, 1)
     x = -gu / jnp.maximum(safe_norm(gu), jnp.finfo(dtype).tiny)[..., None]
-    contrib = area[:, None, None] * jnp.einsum("fkd,fsd->fks", grad, x)   # A_f X_f · ∇ψ_k
-    b = jnp.zeros((n, k), dtype).at[flat].add(contrib.reshape(-1, k))
-    ground = (labels == jnp.arange(n, dtype=labels.dtype)).astype(dtype)
-    # (L + G + εM) φ = b, step 3; εM = 10⁻¹² M/ℓ̄² keeps it definite where L has zero rows (zero-area faces)
-    phi = solve(ground + 1e-12 * mass / ell ** 2, -c, b, laplacian=True)
-    return jnp.where(lost[:, None], jnp.nan, (phi - phi[src, jnp.arange(k)][None, :]).T), lost
+    contrib = s.area[:, None, None] * jnp.einsum("fkd,fsd->fks", s.grad, x)   # A_f X_f · ∇ψ_k
+    b = jnp.zeros((n, k), dtype).at[s.faces.reshape(-1)].add(contrib.reshape(-1, k))
+    return b, lost
+
+
+def _shifted(phi, sources, lost):
+    """Step 4: φ − φ(s) per source, (k, n); NaN rows for the sources whose flow underflowed."""
+    k = sources.shape[0]
+    return jnp.where(lost[:, None], jnp.nan, (phi - phi[sources, jnp.arange(k)][None, :]).T)
+
+
+def _poisson(s: _Systems, labels):
+    """Step 3's matrix L + G + εM as (diagonal, edge values) in the Laplacian form: G is 1 at the
+    first vertex of each component (``labels`` name it)."""
+    ground = (labels == jnp.arange(labels.shape[0], dtype=labels.dtype)).astype(s.poisson_diag.dtype)
+    return ground + s.poisson_diag, -s.weights
+
+
+@functools.partial(jax.jit, static_argnames=("boundary", "backend"))
+def _heat(mesh: Mesh, sources, t, triangulation, labels, *, boundary: str, backend: str):
+    """The numerical part of :func:`heat_distances` for one block of sources (all solved
+    together) as one program, differentiable (the solves are :func:`sparse_solve`'s host
+    callbacks): the distances, NaN for a source whose heat flow underflowed (u = 0
+    somewhere in its component), and which did.  It runs where the positions (or t) are
+    traced; concrete inputs go through :func:`_heat_on_host`, the same steps."""
+    s = _systems(mesh, t, triangulation, boundary=boundary)
+
+    def solve(diag, off, rhs, laplacian=False):
+        return sparse_solve(s.pairs, diag, off, rhs, backend=backend, laplacian=laplacian)
+
+    delta, delta_d = _deltas(mesh.num_vertices, sources, mesh.dtype, s.on)
+    u_n = solve(s.heat_diag, s.heat_off, delta) if boundary != "dirichlet" else None
+    u = u_n if boundary == "neumann" else solve(s.dir_diag, s.dir_off, delta_d)
+    b, lost = _divergence(s, u, u_n, sources, labels, boundary=boundary)
+    return _shifted(solve(*_poisson(s, labels), b, laplacian=True), sources, lost), lost
+
+
+def _systems_arrays(mesh: Mesh, t, triangulation, *, boundary: str) -> tuple:
+    """:func:`_systems` as a plain tuple (a stored program's outputs are plain containers)."""
+    return tuple(_systems(mesh, t, triangulation, boundary=boundary))
+
+
+#: the stages of :func:`_heat` as programs of their own for concrete inputs: without a host
+#: callback inside, each is kept between processes (:mod:`jaxmesh._exported` and the persistent
+#: compilation cache), where a program with one is traced and compiled again in every process
+_systems_program = stored_jit(_systems_arrays, static_argnames=("boundary",))
+_deltas_program = stored_jit(_deltas, static_argnames=("n", "dtype"))
+_divergence_program = stored_jit(_divergence, static_argnames=("boundary",))
+_shifted_program = stored_jit(_shifted)
+_poisson_program = stored_jit(_poisson)
+
+
+def _heat_on_host(s: _Systems, sources, labels, *, boundary: str, backend: str):
+    """:func:`_heat` for concrete inputs, given the block-independent :func:`_systems` ``s``:
+    the same steps, the solves called from the host between cached programs."""
+    dtype = s.heat_diag.dtype
+
+    def solve(diag, off, rhs, laplacian=False):
+        return jnp.asarray(host_solve(s.pairs, diag, off, rhs, backend=backend, laplacian=laplacian), dtype)
+
+    delta, delta_d = _deltas_program(s.heat_diag.shape[0], sources, dtype, s.on)
+    u_n = solve(s.heat_diag, s.heat_off, delta) if boundary != "dirichlet" else None
+    u = u_n if boundary == "neumann" else solve(s.dir_diag, s.dir_off, delta_d)
+    b, lost = _divergence_program(s, u, u_n, sources, labels, boundary=boundary)
+    phi = solve(*_poisson_program(s, labels), b, laplacian=True)
+    return _shifted_program(phi, sources, lost), lost

@@ -21,6 +21,7 @@ the apices c and d once the two triangles are laid out flat on either side of (a
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import no_type_check
 
@@ -156,28 +157,40 @@ def _cot_opposite(l_ab: float, l_x1: float, l_x2: float) -> float:
     return (l_x1 * l_x1 + l_x2 * l_x2 - l_ab * l_ab) / q ** 0.5 if q > 0 else 0.0
 
 
+class _Scalars:
+    """The ``xp`` of :func:`flipped_length` for the flip loop's host floats: one edge at a
+    time, ``math`` costs a fraction of numpy's dispatch on a scalar."""
+    sqrt = staticmethod(math.sqrt)
+
+    @staticmethod
+    @no_type_check
+    def where(condition, a, b):
+        return a if condition else b
+
+
 class _HalfEdges:
-    """Mutable half-edge arrays of a triangle list: half-edge h = 3f + j runs
-    ``origin[h]`` → ``origin[next(h)]`` in face f, lies on edge ``edge[h]`` and has the
-    opposite half-edge ``twin[h]`` (−1 on boundary and non-manifold edges, and everywhere
-    when the orientation is inconsistent: nothing is flipped then); ``of_edge[e]`` is
-    one half-edge of edge e."""
+    """Mutable half-edge lists of a triangle list (Python lists: the flip loop reads and writes
+    them one entry at a time): half-edge h = 3f + j runs ``origin[h]`` → ``origin[next(h)]``
+    in face f, lies on edge ``edge[h]`` and has the opposite half-edge ``twin[h]`` (−1 on
+    boundary and non-manifold edges, and everywhere when the orientation is inconsistent:
+    nothing is flipped then); ``of_edge[e]`` is one half-edge of edge e."""
 
     def __init__(self, faces: np.ndarray, face_edges: np.ndarray, num_vertices: int, num_edges: int):
         nf = faces.shape[0]
-        self.edge = face_edges[:, [2, 0, 1]].ravel().copy()      # the edge of h = 3f + j is opposite corner j + 2
-        self.origin = faces.ravel().copy()
+        edge = face_edges[:, [2, 0, 1]].ravel()      # the edge of h = 3f + j is opposite corner j + 2
+        origin = faces.ravel()
         target = faces[:, [1, 2, 0]].ravel()
-        key = self.origin * num_vertices + target
-        rev = target * num_vertices + self.origin
+        key = origin * num_vertices + target
+        rev = target * num_vertices + origin
         order = np.argsort(key, kind="stable")
         pos = np.minimum(np.searchsorted(key[order], rev), len(key) - 1)
-        self.twin = np.where(key[order][pos] == rev, order[pos], -1)
-        self.twin[np.bincount(self.edge, minlength=num_edges)[self.edge] != 2] = -1
+        twin = np.where(key[order][pos] == rev, order[pos], -1)
+        twin[np.bincount(edge, minlength=num_edges)[edge] != 2] = -1
         if (np.unique(key, return_counts=True)[1] > 1).any():
-            self.twin[:] = -1
-        self.of_edge = np.empty(num_edges, np.int64)
-        self.of_edge[self.edge] = np.arange(3 * nf)
+            twin[:] = -1
+        of_edge = np.empty(num_edges, np.int64)
+        of_edge[edge] = np.arange(3 * nf)
+        self.edge, self.origin, self.twin, self.of_edge = (x.tolist() for x in (edge, origin, twin, of_edge))
 
     @staticmethod
     @no_type_check
@@ -187,8 +200,8 @@ class _HalfEdges:
     @no_type_check
     def quad(self, e: int):
         """(h, t, h1, h2, t1, t2) around interior edge e, or None when it cannot flip."""
-        h = int(self.of_edge[e])
-        t = int(self.twin[h])
+        h = self.of_edge[e]
+        t = self.twin[h]
         if t < 0 or h // 3 == t // 3:
             return None
         h1, t1 = self.next(h), self.next(t)
@@ -201,21 +214,22 @@ class _HalfEdges:
     def flip(self, e: int, quad) -> None:
         """Faces (a, b, c), (b, a, d) on edge e = (a, b) become (c, a, d), (d, b, c)."""
         h, t, h1, h2, t1, t2 = quad
-        a, b, c, d = (self.origin[x] for x in (h, t, h2, t2))
-        f, g = h // 3, t // 3
-        tw = {x: self.twin[x] for x in (h1, h2, t1, t2)}
-        new = [(3 * f, c, self.edge[h2], tw[h2]), (3 * f + 1, a, self.edge[t1], tw[t1]), (3 * f + 2, d, e, 3 * g + 2),
-               (3 * g, d, self.edge[t2], tw[t2]), (3 * g + 1, b, self.edge[h1], tw[h1]), (3 * g + 2, c, e, 3 * f + 2)]
-        for slot, o, edge, twin in new:
-            self.origin[slot], self.edge[slot], self.twin[slot] = o, edge, twin
-            if twin >= 0:
-                self.twin[twin] = slot
-        for slot, _, edge, _ in new:
-            self.of_edge[edge] = slot
+        origin, edge, twin = self.origin, self.edge, self.twin
+        a, b, c, d = origin[h], origin[t], origin[h2], origin[t2]
+        f, g = 3 * (h // 3), 3 * (t // 3)
+        new = ((f, c, edge[h2], twin[h2]), (f + 1, a, edge[t1], twin[t1]), (f + 2, d, e, g + 2),
+               (g, d, edge[t2], twin[t2]), (g + 1, b, edge[h1], twin[h1]), (g + 2, c, e, f + 2))
+        for slot, o, ed, tw in new:
+            origin[slot], edge[slot], twin[slot] = o, ed, tw
+            if tw >= 0:
+                twin[tw] = slot
+        for slot, _, ed, _ in new:
+            self.of_edge[ed] = slot
 
     def pairs(self, num_vertices: int) -> tuple[np.ndarray, np.ndarray]:
         """(distinct vertex pairs (P, 2) with i < j, each edge's pair or −1 for a loop)."""
-        ends = np.stack([self.origin[self.of_edge], self.origin[self.next(self.of_edge)]], 1)
+        origin, of_edge = np.asarray(self.origin, np.int64), np.asarray(self.of_edge, np.int64)
+        ends = np.stack([origin[of_edge], origin[self.next(of_edge)]], 1)
         lo, hi = ends.min(1), ends.max(1)
         loop = lo == hi
         uniq, inverse = np.unique((lo * num_vertices + hi)[~loop], return_inverse=True)
@@ -251,25 +265,27 @@ def intrinsic_delaunay(mesh: Mesh, *, tolerance: float = 1e-10, max_flips: int |
     cot = cotangents_from_lengths(length[face_edges], np)              # (F, 3), corner k opposite edge k
     sums = np.bincount(face_edges.ravel(), cot.ravel(), minlength=ne)
     flippable = np.zeros(ne, bool)
-    flippable[he.edge[he.twin >= 0]] = True
-    queued = flippable & (sums < -tolerance)
-    stack = list(np.flatnonzero(queued)[::-1])
+    edge_of_half = np.asarray(he.edge, np.int64)
+    flippable[edge_of_half[np.asarray(he.twin) >= 0]] = True
+    start = flippable & (sums < -tolerance)
+    stack = np.flatnonzero(start)[::-1].tolist()
+    queued, length = start.tolist(), length.tolist()           # Python scalars: the loop is per edge
     flips: list[tuple[int, int, int, int, int]] = []
     limit = 100 * max(ne, 1) if max_flips is None else int(max_flips)
     while stack:
-        e = int(stack.pop())
+        e = stack.pop()
         queued[e] = False
         quad = he.quad(e)
         if quad is None:
             continue
         _, _, h1, h2, t1, t2 = quad
-        bc, ca, ad, db = (int(he.edge[x]) for x in (h1, h2, t1, t2))
+        bc, ca, ad, db = he.edge[h1], he.edge[h2], he.edge[t1], he.edge[t2]
         if _cot_opposite(length[e], length[bc], length[ca]) + _cot_opposite(length[e], length[ad], length[db]) \
                 >= -tolerance:
             continue
         if len(flips) >= limit:
             raise RuntimeError(f"intrinsic_delaunay: more than {limit} flips (max_flips)")
-        length[e] = flipped_length(length[e], length[bc], length[ca], length[ad], length[db], np)
+        length[e] = flipped_length(length[e], length[bc], length[ca], length[ad], length[db], _Scalars)
         flips.append((e, bc, ca, ad, db))
         he.flip(e, quad)
         for x in (bc, ca, ad, db):
@@ -278,8 +294,8 @@ def intrinsic_delaunay(mesh: Mesh, *, tolerance: float = 1e-10, max_flips: int |
                 stack.append(x)
     pairs, edge_pair = he.pairs(mesh.num_vertices)
     return IntrinsicTriangulation(
-        faces=he.origin.reshape(nf, 3).astype(np.int32),
-        face_edges=he.edge.reshape(nf, 3)[:, [1, 2, 0]].astype(np.int32),   # opposite corner k: half-edge k + 1
+        faces=np.asarray(he.origin, np.int32).reshape(nf, 3),
+        face_edges=np.asarray(he.edge, np.int32).reshape(nf, 3)[:, [1, 2, 0]],   # opposite corner k: half-edge k + 1
         flips=np.array(flips, np.int32).reshape(-1, 5), pairs=pairs.astype(np.int32),
         edge_pair=edge_pair.astype(np.int32), num_vertices=mesh.num_vertices, num_edges=ne)
 

@@ -57,7 +57,8 @@ from jaxtyping import Array, Float, Int
 
 from .mesh import Mesh
 
-__all__ = ["sparse_solve", "sparse_matvec", "mesh_solve", "BACKENDS", "default_backend", "clear_factor_cache"]
+__all__ = ["sparse_solve", "sparse_matvec", "mesh_solve", "host_solve", "BACKENDS", "default_backend",
+           "clear_factor_cache"]
 
 BACKENDS = ("auto", "cholesky", "lu")
 _CACHE_SIZE = 16
@@ -166,6 +167,34 @@ def mesh_solve(
     Returns:
         x, the shape and dtype of ``b``."""
     return sparse_solve(mesh.edges, diagonal, edge_values, b, backend=backend, laplacian=laplacian)
+
+
+def host_solve(edges, diagonal, edge_values, b, *, backend: Literal["auto", "cholesky", "lu"] = "auto",
+               laplacian: bool = False) -> np.ndarray:
+    """x = A⁻¹ b for host code: :func:`sparse_solve`'s matrix and factor cache, numpy in and
+    out, no JAX program (nothing to compile, nothing to differentiate).  A matrix that
+    cannot be factored raises ``ValueError`` here, as :func:`sparse_solve` does on a
+    concrete matrix.
+
+    Arguments:
+        edges: undirected edges (i, j), (E, 2).
+        diagonal: d, (n,).
+        edge_values: a, one per edge, (E,).
+        b: right-hand sides, (n,) or (n, k).
+        backend: as :func:`sparse_solve`.
+        laplacian: as :func:`sparse_solve`.
+
+    Returns:
+        x, float64, the shape of ``b``."""
+    if backend not in BACKENDS:
+        raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
+    e, a = np.asarray(edges), np.asarray(edge_values)
+    factor = _factor(e, _host_diagonal(e, np.asarray(diagonal), a, laplacian), a,
+                     default_backend() if backend == "auto" else backend)
+    x = factor.solve(np.asarray(b))
+    with _lock:
+        _stats["solves"] += 1
+    return x
 
 
 def _host_diagonal(edges: np.ndarray, diagonal: np.ndarray, values: np.ndarray, laplacian: bool) -> np.ndarray:
@@ -329,10 +358,7 @@ def _host_solve(edges, diagonal, edge_values, rhs, backend: str, laplacian: bool
             return np.moveaxis(x, -1, 0).reshape(r.shape).astype(r.dtype)
         out = np.empty(r.shape, r.dtype)
         for idx in np.ndindex(*lead):
-            f = _factor(e[idx], _host_diagonal(e[idx], d[idx], a[idx], laplacian), a[idx], backend)
-            out[idx] = f.solve(r[idx]).astype(r.dtype)
-            with _lock:
-                _stats["solves"] += 1
+            out[idx] = host_solve(e[idx], d[idx], a[idx], r[idx], backend=backend, laplacian=laplacian)
         return out
 
     return jax.pure_callback(host, out_type, edges, diagonal, edge_values, rhs, vmap_method="expand_dims")

@@ -53,6 +53,23 @@ def test_solve_equals_scipy_and_matvec_inverts_it(system, backend):
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
+def test_host_solve_equals_scipy_in_numpy_and_refuses_what_sparse_solve_refuses(system, backend):
+    mesh, d, a, b = system
+    e, d, a, b = (np.asarray(z) for z in (mesh.edges, d, a, b))
+    x = linalg.host_solve(e, d, a, b, backend=backend)
+    assert isinstance(x, np.ndarray) and x.dtype == np.float64 and x.shape == b.shape
+    np.testing.assert_allclose(x, spla.spsolve(scipy_matrix(e, d, a), b), rtol=1e-12, atol=1e-12)
+    # the Laplacian form: the diagonal given is added to the Laplacian of the edge values
+    lap = linalg.host_solve(e, np.full(len(d), 0.5), a, b[:, 0], backend=backend, laplacian=True)
+    sums = np.bincount(e[:, 0], a, len(d)) + np.bincount(e[:, 1], a, len(d))
+    np.testing.assert_allclose(lap, spla.spsolve(scipy_matrix(e, 0.5 - sums, a), b[:, 0]), rtol=1e-10, atol=1e-12)
+    assert_refused(linalg.host_solve, e, d, a, b, backend="qr", param="backend", message="backend must be one of")
+    if backend != "lu":
+        with pytest.raises(ValueError, match="not positive definite"):
+            linalg.host_solve(e, -d, a, b, backend=backend)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
 def test_derivatives_match_finite_differences(system, backend):
     mesh, d, a, b = system
 

@@ -263,6 +263,24 @@ def test_mesh_statistics_geodesics_are_histograms_of_the_distances():
     assert small["summary"]["sources"] == 12 < stats.SOURCES
 
 
+def test_mesh_statistics_on_threads_equal_a_plain_loop(monkeypatch):
+    """The geodesics and spectra run beside each other on the cores: each is the same
+    computation as one after the other, so every number is identical."""
+    mesh = jaxmesh.load(shared_mesh_path("eight.ply"))
+    spread = stats.mesh_statistics(mesh, sources=12, seed=3)
+    monkeypatch.setenv("JAXMESH_THREADS", "1")
+    plain = stats.mesh_statistics(mesh, sources=12, seed=3)
+    assert spread["summary"] == plain["summary"]
+    for kind in ("combinatorial", "normalized"):
+        np.testing.assert_array_equal(spread["spectrum"][kind][1], plain["spectrum"][kind][1])
+    for g in ("edges", "knn", "heat"):
+        np.testing.assert_array_equal(spread["geodesics"][g].counts, plain["geodesics"][g].counts)
+
+
+def test_source_blocks_are_sized_to_the_faces():
+    assert [stats.source_block(f) for f in (0, 20_000, 65_536, 65_537, 131_073, 10**7)] == [16, 16, 16, 8, 4, 4]
+
+
 @pytest.mark.slow
 def test_mesh_statistics_compiles_few_programs_in_a_fresh_process():
     """The statistics' host code calls the geometry through one compiled program each, not

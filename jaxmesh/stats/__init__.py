@@ -6,18 +6,18 @@ moments are jitted kernels."""
 from .clustering import clustering, clustering_by_degree, thesis_clustering, triangle_counts
 from .degree import (assortativity_function, average_degree, degree_assortativity, degree_distribution,
                      neighbor_connectivity)
-from .geodesic import (HISTOGRAM_BINS, DistanceHistogram, distance_blocks, distance_histogram, geodesic_distances,
-                       graph_distances, heat_geodesics, sample_sources)
+from .geodesic import (BLOCK_BUDGET, HISTOGRAM_BINS, DistanceHistogram, distance_blocks, distance_histogram,
+                       geodesic_distances, graph_distances, heat_geodesics, sample_sources, source_block)
 from .density import SpectralDensity, density_quantiles, spectral_density, spectrum_distance
 from .spectrum import laplacian_spectrum
-from .summary import KNN, SOURCES, mesh_statistics, plot_statistics
+from .summary import CONCURRENT_VERTICES, KNN, SOURCES, mesh_statistics, plot_statistics
 
 __all__ = [
     "average_degree", "degree_distribution", "neighbor_connectivity", "assortativity_function",
     "degree_assortativity", "triangle_counts", "clustering", "thesis_clustering", "clustering_by_degree",
     "sample_sources", "graph_distances", "heat_geodesics", "geodesic_distances", "distance_blocks",
-    "DistanceHistogram", "distance_histogram", "HISTOGRAM_BINS",
+    "DistanceHistogram", "distance_histogram", "source_block", "HISTOGRAM_BINS", "BLOCK_BUDGET",
     "laplacian_spectrum",
     "SpectralDensity", "spectral_density", "density_quantiles", "spectrum_distance",
-    "mesh_statistics", "plot_statistics", "SOURCES", "KNN",
+    "mesh_statistics", "plot_statistics", "SOURCES", "KNN", "CONCURRENT_VERTICES",
 ]

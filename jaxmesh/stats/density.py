@@ -22,9 +22,9 @@ x = cos θ the distribution function integrates term by term:
     F(θ) = μ_0 (π − θ)/π − (2/π) Σ_{m≥1} g_m μ_m sin(mθ)/m.
 
 Both Laplacians are positive semi-definite, so the spectrum lies in [0, λ_max], λ_max
-from Lanczos (``eigsh``; Gershgorin's 2 max_i d_i for L = D − A and 2 for
-𝓛 = I − D^{-1/2} A D^{-1/2} where it does not converge); [a, b] is that interval widened
-by ``MARGIN`` of its length so that no eigenvalue sits on ±1.
+from Lanczos (``eigsh`` to a relative residual of 1e-5; Gershgorin's 2 max_i d_i for
+L = D − A and 2 for 𝓛 = I − D^{-1/2} A D^{-1/2} where it does not converge); [a, b] is
+that interval widened by ``MARGIN`` of its length so that no eigenvalue sits on ±1.
 """
 
 from __future__ import annotations
@@ -117,9 +117,15 @@ def laplacian_of_kind(mesh, kind: str):
     raise ValueError(f"kind must be 'combinatorial' or 'normalized', got {kind!r}")
 
 
+#: the relative residual :func:`largest_eigenvalue` asks of Lanczos: the Ritz value is then within
+#: 1e-5 λ_max of an eigenvalue, a hundredth of the interval's widening (``MARGIN``)
+LANCZOS_TOLERANCE = 1e-5
+
+
 def largest_eigenvalue(mat, bound: float) -> float:
-    """λ_max of a symmetric positive semi-definite matrix: Lanczos (``eigsh``) to 1e-8, a dense
-    solver below 64 rows; ``bound`` (a Gershgorin bound) where Lanczos does not converge.
+    """λ_max of a symmetric positive semi-definite matrix: Lanczos (``eigsh``) to a relative
+    residual of ``LANCZOS_TOLERANCE``, a dense solver below 64 rows; ``bound`` (a Gershgorin
+    bound) where Lanczos does not converge.
 
     Arguments:
         mat: a scipy sparse symmetric matrix.
@@ -136,7 +142,8 @@ def largest_eigenvalue(mat, bound: float) -> float:
     if n < 64:
         return float(min(scipy.linalg.eigvalsh(mat.toarray())[-1], bound))
     try:
-        top = spla.eigsh(mat, k=1, which="LA", tol=1e-8, v0=start_vector(n), return_eigenvectors=False)
+        top = spla.eigsh(mat, k=1, which="LA", tol=LANCZOS_TOLERANCE, v0=start_vector(n),
+                         return_eigenvectors=False)
     except spla.ArpackNoConvergence:
         return bound
     return float(min(top[0], bound))

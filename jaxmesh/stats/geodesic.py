@@ -28,12 +28,12 @@ from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 
 from .. import sparse as jsparse
-from ..geodesics import heat_components, heat_distances
+from ..geodesics import heat_components, heat_solver
 from ..intrinsic import intrinsic_delaunay
 from ._graph import MeshOrView, single
 
 __all__ = ["sample_sources", "graph_distances", "heat_geodesics", "geodesic_distances", "distance_blocks",
-           "DistanceHistogram", "distance_histogram", "HISTOGRAM_BINS"]
+           "DistanceHistogram", "distance_histogram", "source_block", "HISTOGRAM_BINS", "BLOCK_BUDGET"]
 
 
 def sample_sources(mesh: MeshOrView, count: int, seed: int = 0) -> np.ndarray:
@@ -147,23 +147,25 @@ def _heat_blocks(mesh: MeshOrView, sources: np.ndarray, t, block: int):
     adjacency = jsparse.adjacency_matrix(base)      # built once: the components and the reach probe
     _, labels = csgraph.connected_components(adjacency, directed=False)   # reachable: the source's component
     components = heat_components(base)              # once, not once a block
-    if t is None and len(sources):
-        t = _reaching_time(base, tri, adjacency, components, int(sources[0]), block)
+    if not len(sources):
+        return
+    solver = (_reaching_solver(base, tri, adjacency, components, int(sources[0]), block) if t is None else
+              heat_solver(base, t, triangulation=tri, components=components))
     for lo in range(0, len(sources), block):
         part = sources[lo:lo + block]
         if len(part) < block and lo:                  # the last block padded: one compiled program
             padded = np.r_[part, np.full(block - len(part), part[-1])]
         else:
             padded = part
-        phi = np.array(heat_distances(base, padded, t, block=block, triangulation=tri, components=components),
-                       np.float64)[:len(part)]
+        phi = np.array(solver(padded, block=block), np.float64)[:len(part)]
         phi[labels[part][:, None] != labels[None, :]] = np.inf
         yield part, phi
 
 
-def _reaching_time(mesh, tri, adjacency, components, source: int, block: int):
-    """None (the default t = ℓ̄²) when the heat flow from the ends of the mesh's longest hop
-    paths reaches all of their component, else 2 · 4^j ℓ̄² for the least j ≤ 8 at which it does:
+def _reaching_solver(mesh, tri, adjacency, components, source: int, block: int):
+    """The :func:`~jaxmesh.geodesics.heat_solver` at the default t = ℓ̄² when the heat flow from the
+    ends of the mesh's longest hop paths reaches all of their component, else at t = 2 · 4^j ℓ̄²
+    for the least j ≤ 8 at which it does:
     the flow decays like exp(−d/√t) and underflows in float64 a few hundred ℓ̄ from a source at
     t = ℓ̄², so on a mesh that spans more (a 556k-vertex scan) the default cannot reach across it.
     The probes are a double sweep of breadth-first searches over ``adjacency`` from ``source``
@@ -178,10 +180,11 @@ def _reaching_time(mesh, tri, adjacency, components, source: int, block: int):
         probes.append(source)
     ell2 = float(jax.jit(mean_edge_length)(mesh)) ** 2
     for j in range(9):
-        t = None if j == 0 else 2.0 * 4.0 ** j * ell2
+        solver = heat_solver(mesh, None if j == 0 else 2.0 * 4.0 ** j * ell2, triangulation=tri,
+                             components=components)
         try:
-            heat_distances(mesh, np.asarray(probes), t, block=block, triangulation=tri, components=components)
-            return t
+            solver(np.asarray(probes), block=block)
+            return solver
         except ValueError as err:
             if "underflows" not in str(err) or mesh.dtype != np.float64:
                 raise
@@ -231,7 +234,28 @@ class DistanceHistogram(NamedTuple):
 HISTOGRAM_BINS = 4096
 
 
-def distance_histogram(mesh: MeshOrView, sources, method: str = "heat", k: int = 8, block: int = 4,
+#: :func:`distance_histogram`'s default block: the most sources, a power of two in [4, 16], whose
+#: heat-method intermediates (F · block · 3 floats each) stay within ``BLOCK_BUDGET`` face-sources
+BLOCK_BUDGET = 2 ** 20
+
+
+def source_block(num_faces: int) -> int:
+    """Sources per block for a mesh of ``num_faces`` faces: the largest power of two in [4, 16]
+    with ``num_faces · block ≤ BLOCK_BUDGET`` (4 above that budget): few blocks on a small mesh
+    (each block costs a few solves and program calls), bounded memory on a large one.
+
+    Arguments:
+        num_faces: F.
+
+    Returns:
+        4, 8 or 16."""
+    block = 16
+    while block > 4 and num_faces * block > BLOCK_BUDGET:
+        block //= 2
+    return block
+
+
+def distance_histogram(mesh: MeshOrView, sources, method: str = "heat", k: int = 8, block: int | None = None,
                        bins: int = HISTOGRAM_BINS) -> DistanceHistogram:
     """The histogram, mean and deviation of the finite distances from ``sources`` by
     ``method`` (self-distances left out), from :func:`distance_blocks`: memory O(block · V
@@ -244,13 +268,15 @@ def distance_histogram(mesh: MeshOrView, sources, method: str = "heat", k: int =
         sources: source vertex indices, (S,) integers.
         method: ``"heat"``, ``"edges"`` or ``"knn"``.
         k: neighbours per vertex of the kNN graph.
-        block: sources per block.
+        block: sources per block (default :func:`source_block` of the mesh's faces).
         bins: fine bins, a power of two (≥ 2).
 
     Returns:
         A :class:`DistanceHistogram`."""
     if isinstance(bins, bool) or not isinstance(bins, (int, np.integer)) or bins < 2 or bins & (bins - 1):
         raise ValueError(f"bins must be a power of two >= 2, got {bins!r}")
+    if block is None:
+        block = source_block(mesh.num_faces)
     counts, top, n, mean, m2 = np.zeros(bins, np.int64), 0.0, 0, 0.0, 0.0
     for src, d in distance_blocks(mesh, sources, method, k, block):
         keep = np.isfinite(d)

@@ -9,6 +9,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from .._threads import concurrent_map
 from ..mesh import Mesh, MeshWarning
 from ._graph import graph_view
 from .clustering import clustering, clustering_by_degree, thesis_clustering
@@ -17,11 +18,13 @@ from .degree import (assortativity_function, average_degree, degree_assortativit
 from .geodesic import distance_histogram, sample_sources
 from .spectrum import DENSE_MAX, laplacian_spectrum
 
-__all__ = ["mesh_statistics", "plot_statistics", "SOURCES", "KNN"]
+__all__ = ["mesh_statistics", "plot_statistics", "SOURCES", "KNN", "CONCURRENT_VERTICES"]
 
 
 #: the defaults of :func:`mesh_statistics`'s ``sources`` and ``knn`` (lowered quietly on a small mesh)
 SOURCES, KNN = 200, 8
+#: meshes up to this many vertices get their geodesics and spectra on threads side by side
+CONCURRENT_VERTICES = 50_000
 
 
 def mesh_statistics(mesh: Mesh, sources: int | None = None, seed: int = 0, knn: int | None = None,
@@ -72,12 +75,7 @@ def mesh_statistics(mesh: Mesh, sources: int | None = None, seed: int = 0, knn: 
     ck, c_k = clustering_by_degree(graph, c)
     _, ct_k = clustering_by_degree(graph, ct)
     src = sample_sources(mesh, sources, seed)
-    dist = {}
-    for g in geodesics:
-        say(f"{g} geodesics from {len(src)} sources")
-        dist[g] = distance_histogram(mesh, src, g, knn)
-    say("Laplacian spectra")
-    spec = {kind: laplacian_spectrum(mesh, kind, spectrum_k) for kind in ("combinatorial", "normalized")}
+    dist, spec = _geodesics_and_spectra(mesh, src, geodesics, knn, spectrum_k, say)
     d = graph.degree
     connected = d > 0
     differ = connected & ~np.isclose(c, np.nan_to_num(ct, nan=-1))
@@ -98,6 +96,29 @@ def mesh_statistics(mesh: Mesh, sources: int | None = None, seed: int = 0, knn: 
         summary[f"geodesic_{g}_mean"], summary[f"geodesic_{g}_std"] = h.mean, h.std
     return {"summary": summary, "degree": (ks, pk), "knn": (kk, knn_k), "clustering": (ck, c_k),
             "thesis_clustering": (ck, ct_k), "spectrum": spec, "geodesics": dist, "sources": src}
+
+
+def _geodesics_and_spectra(mesh, src, geodesics, knn, spectrum_k, say) -> tuple[dict, dict]:
+    """Each geodesic method's histogram from ``src`` and both Laplacian spectra."""
+    def job(task):
+        what, name = task
+        if what == "geodesics":
+            say(f"{name} geodesics from {len(src)} sources")
+            return distance_histogram(mesh, src, name, knn)
+        say(f"{name} Laplacian spectrum")
+        return laplacian_spectrum(mesh, name, spectrum_k)
+
+    # on a small mesh the geodesics and spectra run beside each other on the cores, the heat method
+    # (the longest) first: the graph searches hold Python's lock, the compiled programs do not.
+    # On a large one, one after the other: side by side their working memory adds up
+    tasks = ([("geodesics", g) for g in geodesics if g == "heat"]
+             + [("spectrum", kind) for kind in ("combinatorial", "normalized")]
+             + [("geodesics", g) for g in geodesics if g != "heat"])
+    spread = (concurrent_map if mesh.num_vertices <= CONCURRENT_VERTICES else
+              (lambda fn, items: [fn(x) for x in items]))
+    done = dict(zip(tasks, spread(job, tasks)))
+    return ({g: done["geodesics", g] for g in geodesics},
+            {kind: done["spectrum", kind] for kind in ("combinatorial", "normalized")})
 
 
 def plot_statistics(mesh: Mesh, stats: dict, title: str = "", path=None, up: str = "y"):
