@@ -26,11 +26,14 @@ import sys
 import time
 from pathlib import Path
 
+import jax
 import numpy as np
 import trimesh
 
-import jaxmesh
-from jaxmesh import stats
+jax.config.update("jax_enable_x64", True)   # as `jaxmesh stats` runs: the heat flow underflows in float32 on the bunny
+
+import jaxmesh  # noqa: E402
+from jaxmesh import stats  # noqa: E402
 
 
 def timed(fn, repeat=3):
@@ -94,7 +97,7 @@ def main() -> None:
     args = ap.parse_args()
     if args.memory:
         return cli_memory()
-    bunny = jaxmesh.data.load_sample("bunny")
+    bunny = jaxmesh.data.load_sample("bunny", dtype="float64")
     v, f = np.asarray(bunny.vertices, np.float64), np.asarray(bunny.faces)
     for _ in range(2):
         v, f = trimesh.remesh.subdivide(v, f)
