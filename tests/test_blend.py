@@ -9,7 +9,7 @@ import trimesh
 
 import jaxmesh
 from jaxmesh.tune import Candidate, Component, Ranked, choose_denoiser
-from jaxmesh.tune.blend import best_mixture, mixture_weights, snapshot_rows, tilt_gram
+from jaxmesh.tune.blend import BLEND_MIN_GAIN, best_mixture, mixture_weights, snapshot_rows, tilt_gram, worth_blending
 
 
 def blend_weight(gram: np.ndarray, i: int, j: int) -> tuple[float, float]:
@@ -123,6 +123,22 @@ def test_best_mixture_of_pairs_is_best_blend_and_more_rows_never_hurt():
         assert dict(rows) == pytest.approx(dict(pairs)) and risk == pytest.approx(pair_risk, rel=1e-12)
         assert best_mixture(g, winner, size=4)[1] <= pair_risk + 1e-9
         assert best_mixture(g, winner, size=1) == (((winner, 1.0),), float(g[winner, winner]))
+
+
+def test_a_blend_must_gain_a_share_of_the_winners_estimated_risk():
+    """By hand: the winner sums 110 over 10 faces × draws with the noise constant 1, so its
+    estimated risk is 11 − 1 = 10; a blend is taken when it gains at least 1% of that (0.1 a
+    face-draw: a total of at most 109), and never when it sums no less than the winner."""
+    gram = np.array([[110.0, 0.0], [0.0, 130.0]])
+    assert BLEND_MIN_GAIN == 0.01
+    assert worth_blending(gram, 0, 108.95, 1.0, 10)
+    assert not worth_blending(gram, 0, 109.05, 1.0, 10)
+    assert not worth_blending(gram, 0, 110.0, 1.0, 10, min_gain=0.0)
+    assert worth_blending(gram, 0, 109.9, 1.0, 10, min_gain=0.0)
+    # the held-out estimate has no constant: 1% of 11 is 0.11 a face-draw
+    assert worth_blending(gram, 0, 108.85, 0.0, 10) and not worth_blending(gram, 0, 108.95, 0.0, 10)
+    # a winner estimated at or below zero risk: any lower blend is taken
+    assert worth_blending(gram, 0, 109.99, 12.0, 10)
 
 
 def test_mixture_weights_refuse_singular_and_boundary_sets():

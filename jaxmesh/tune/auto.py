@@ -60,7 +60,7 @@ from ..host import HostMesh
 from ..mesh import Mesh
 from ..transforms import far_vertices
 from .blend import (BLEND_DRAWS, BLEND_SALT, BLEND_SIZE, SNAPSHOT_FACTORS, best_mixture, check_snapshots,
-                    snapshot_rows, tilt_gram)
+                    snapshot_rows, tilt_gram, worth_blending)
 from .heldout import (HELD_OUT_MIN_FACES, feature_faces, held_out_inputs, held_out_split, measured_faces,
                       stratum_weights)
 from .impulsive import estimate_impulsive_noise, read_after_repair
@@ -318,8 +318,9 @@ def _rank(host: HostMesh, core, ell, candidates, paths, s_vertex, s_t, draws, bl
         fresh = draw(blend_draws, BLEND_SALT)
         blended = [Candidate(*r[:2]) for r in rows]
         gram = tilt_gram(np.stack(_tilts(noisy, *fresh[:2], blended, auxes, nu, ell, _path_methods(paths))))
-        mix, total = best_mixture(gram, next(i for i, r in enumerate(rows) if r is table[0]), blend_size)
-        if len(mix) > 1:
+        winner = next(i for i, r in enumerate(rows) if r is table[0])
+        mix, total = best_mixture(gram, winner, blend_size)
+        if len(mix) > 1 and worth_blending(gram, winner, total, constant, noisy.num_faces * blend_draws):
             components = tuple(Component(rows[i].method, rows[i].params, w) for i, w in mix)
             risk = total / noisy.num_faces / blend_draws - constant
     table = [Ranked(m, p, r * per_face) for m, p, r in table]
