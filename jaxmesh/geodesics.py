@@ -239,9 +239,9 @@ def _checked(run, mesh: Mesh):
 
 class _Systems(NamedTuple):
     """What every block of sources shares (:func:`_systems`): the triangles, their areas and
-    hat gradients, the pairs and weights of the Laplacian, the lumped mass, and the step 1 and
-    step 3 matrices' diagonals and off-diagonal values on those pairs (the Dirichlet ones
-    equal to the Neumann ones under ``boundary="neumann"``)."""
+    hat gradients, the Laplacian's pairs and weights, where the lumped mass is positive, the
+    boundary vertices, step 1's matrices as diagonals and off-diagonal values on those pairs
+    (Neumann, and Dirichlet: the same under ``boundary="neumann"``) and step 3's εM."""
     faces: Array
     area: Array
     grad: Array
