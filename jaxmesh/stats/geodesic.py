@@ -54,6 +54,9 @@ def sample_sources(mesh: MeshOrView, count: int, seed: int = 0) -> np.ndarray:
 
 
 def _graph(mesh: MeshOrView, graph: str, k: int) -> sp.csr_matrix:
+    """The weighted graph, symmetric by construction (each edge's length both ways; the kNN
+    graph symmetrised): a directed search on it is the undirected one, and scipy's
+    ``directed=False`` would only symmetrise it again on every call."""
     if graph == "edges":
         return jsparse.edge_length_matrix(mesh)
     v = np.asarray(mesh.vertices, np.float64)
@@ -83,7 +86,7 @@ def graph_distances(mesh: MeshOrView, sources, graph: str = "edges", k: int = 8)
     Returns:
         Distances, (S, V), inf where unreachable."""
     single(mesh)
-    return csgraph.dijkstra(_graph(mesh, graph, k), directed=False, indices=np.asarray(sources))
+    return csgraph.dijkstra(_graph(mesh, graph, k), directed=True, indices=np.asarray(sources))
 
 
 def heat_geodesics(mesh: MeshOrView, sources, t: float | None = None, block: int = 8) -> np.ndarray:
@@ -135,7 +138,7 @@ def distance_blocks(mesh: MeshOrView, sources, method: str = "heat", k: int = 8,
     if method not in ("edges", "knn"):
         raise ValueError(f"method must be 'heat', 'edges' or 'knn', got {method!r}")
     w = _graph(mesh, method, k)
-    return ((sources[lo:lo + block], csgraph.dijkstra(w, directed=False, indices=sources[lo:lo + block]))
+    return ((sources[lo:lo + block], csgraph.dijkstra(w, directed=True, indices=sources[lo:lo + block]))
             for lo in range(0, len(sources), block))
 
 
