@@ -155,11 +155,12 @@ def heat_solver(
     traced = any(isinstance(z, jax.core.Tracer) for z in (mesh.vertices, t))
     # concrete: the matrices once, the solves called from the host
     systems = None if traced else _Systems(*_systems_program(mesh, t, arrays, boundary=boundary))
+    poisson = None if traced else _poisson_program(systems, labels)
 
     def run(part):
         if systems is None or isinstance(part, jax.core.Tracer):
             return _heat(mesh, part, t, arrays, labels, boundary=boundary, backend=backend)
-        return _heat_on_host(systems, part, labels, boundary=boundary, backend=backend)
+        return _heat_on_host(systems, poisson, part, labels, boundary=boundary, backend=backend)
 
     def distances(sources, block: int = 64) -> Float[Array, "S V"]:
         _check_block(block)
@@ -337,23 +338,31 @@ def _poisson(s: _Systems, labels):
     return ground + s.poisson_diag, -s.weights
 
 
+def _steps(s: _Systems, poisson: tuple, sources, labels, *, boundary: str, solve, stages: tuple):
+    """Steps 1–4 for one block of sources, given the shared systems ``s``, step 3's matrix
+    ``poisson`` (:func:`_poisson`), the sparse ``solve`` and the ``stages`` (:func:`_deltas`,
+    :func:`_divergence`, :func:`_shifted`, or their stored programs): the distances, NaN for
+    a source whose heat flow underflowed (u = 0 somewhere in its component), and which did."""
+    deltas, divergence, shifted = stages
+    delta, delta_d = deltas(s.heat_diag.shape[0], sources, s.heat_diag.dtype, s.on)
+    u_n = solve(s.heat_diag, s.heat_off, delta) if boundary != "dirichlet" else None
+    u = u_n if boundary == "neumann" else solve(s.dir_diag, s.dir_off, delta_d)
+    b, lost = divergence(s, u, u_n, sources, labels, boundary=boundary)
+    return shifted(solve(*poisson, b, laplacian=True), sources, lost), lost
+
+
 @functools.partial(jax.jit, static_argnames=("boundary", "backend"))
 def _heat(mesh: Mesh, sources, t, triangulation, labels, *, boundary: str, backend: str):
-    """The numerical part of :func:`heat_distances` for one block of sources (all solved
-    together) as one program, differentiable (the solves are :func:`sparse_solve`'s host
-    callbacks): the distances, NaN for a source whose heat flow underflowed (u = 0
-    somewhere in its component), and which did.  It runs where the positions (or t) are
+    """:func:`_steps` for one block of sources as one program, differentiable (the solves
+    are :func:`sparse_solve`'s host callbacks).  It runs where the positions (or t) are
     traced; concrete inputs go through :func:`_heat_on_host`, the same steps."""
     s = _systems(mesh, t, triangulation, boundary=boundary)
 
     def solve(diag, off, rhs, laplacian=False):
         return sparse_solve(s.pairs, diag, off, rhs, backend=backend, laplacian=laplacian)
 
-    delta, delta_d = _deltas(mesh.num_vertices, sources, mesh.dtype, s.on)
-    u_n = solve(s.heat_diag, s.heat_off, delta) if boundary != "dirichlet" else None
-    u = u_n if boundary == "neumann" else solve(s.dir_diag, s.dir_off, delta_d)
-    b, lost = _divergence(s, u, u_n, sources, labels, boundary=boundary)
-    return _shifted(solve(*_poisson(s, labels), b, laplacian=True), sources, lost), lost
+    return _steps(s, _poisson(s, labels), sources, labels, boundary=boundary, solve=solve,
+                  stages=(_deltas, _divergence, _shifted))
 
 
 def _systems_arrays(mesh: Mesh, t, triangulation, *, boundary: str) -> tuple:
@@ -365,23 +374,16 @@ def _systems_arrays(mesh: Mesh, t, triangulation, *, boundary: str) -> tuple:
 #: callback inside, each is kept between processes (:mod:`jaxmesh._exported` and the persistent
 #: compilation cache), where a program with one is traced and compiled again in every process
 _systems_program = stored_jit(_systems_arrays, static_argnames=("boundary",))
-_deltas_program = stored_jit(_deltas, static_argnames=("n", "dtype"))
-_divergence_program = stored_jit(_divergence, static_argnames=("boundary",))
-_shifted_program = stored_jit(_shifted)
 _poisson_program = stored_jit(_poisson)
+_STAGE_PROGRAMS = (stored_jit(_deltas, static_argnames=("n", "dtype")),
+                   stored_jit(_divergence, static_argnames=("boundary",)), stored_jit(_shifted))
 
 
-def _heat_on_host(s: _Systems, sources, labels, *, boundary: str, backend: str):
-    """:func:`_heat` for concrete inputs, given the block-independent :func:`_systems` ``s``:
-    the same steps, the solves called from the host between cached programs."""
-    dtype = s.heat_diag.dtype
-
+def _heat_on_host(s: _Systems, poisson: tuple, sources, labels, *, boundary: str, backend: str):
+    """:func:`_steps` for concrete inputs, given the block-independent systems ``s`` and
+    ``poisson``: the stored stage programs, the solves called from the host between them."""
     def solve(diag, off, rhs, laplacian=False):
-        return jnp.asarray(host_solve(s.pairs, diag, off, rhs, backend=backend, laplacian=laplacian), dtype)
+        return jnp.asarray(host_solve(s.pairs, diag, off, rhs, backend=backend, laplacian=laplacian),
+                           s.heat_diag.dtype)
 
-    delta, delta_d = _deltas_program(s.heat_diag.shape[0], sources, dtype, s.on)
-    u_n = solve(s.heat_diag, s.heat_off, delta) if boundary != "dirichlet" else None
-    u = u_n if boundary == "neumann" else solve(s.dir_diag, s.dir_off, delta_d)
-    b, lost = _divergence_program(s, u, u_n, sources, labels, boundary=boundary)
-    phi = solve(*_poisson_program(s, labels), b, laplacian=True)
-    return _shifted_program(phi, sources, lost), lost
+    return _steps(s, poisson, sources, labels, boundary=boundary, solve=solve, stages=_STAGE_PROGRAMS)
