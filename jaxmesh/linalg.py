@@ -350,11 +350,9 @@ def _host_solve(edges, diagonal, edge_values, rhs, backend: str, laplacian: bool
                 and a.strides[:len(lead)] == (0,) * len(lead):
             # one matrix, many right-hand sides (vmap over b): one factor, one multi-column solve
             idx0 = (0,) * len(lead)
-            f = _factor(e[idx0], _host_diagonal(e[idx0], d[idx0], a[idx0], laplacian), a[idx0], backend)
             cols = np.moveaxis(r.reshape((-1,) + r.shape[len(lead):]), 0, -1)     # (n, [k,] B)
-            x = f.solve(cols.reshape(cols.shape[0], -1)).reshape(cols.shape)
-            with _lock:
-                _stats["solves"] += 1
+            x = host_solve(e[idx0], d[idx0], a[idx0], cols.reshape(cols.shape[0], -1), backend=backend,
+                           laplacian=laplacian).reshape(cols.shape)
             return np.moveaxis(x, -1, 0).reshape(r.shape).astype(r.dtype)
         out = np.empty(r.shape, r.dtype)
         for idx in np.ndindex(*lead):
