@@ -9,7 +9,7 @@ from .degree import (assortativity_function, average_degree, degree_assortativit
 from .geodesic import (BLOCK_BUDGET, HISTOGRAM_BINS, DistanceHistogram, distance_blocks, distance_histogram,
                        geodesic_distances, graph_distances, heat_geodesics, sample_sources, source_block)
 from .density import SpectralDensity, density_quantiles, spectral_density, spectrum_distance
-from .spectrum import laplacian_spectrum
+from .spectrum import DENSE_MAX, laplacian_spectrum
 from .summary import CONCURRENT_VERTICES, KNN, SOURCES, mesh_statistics, plot_statistics
 
 __all__ = [
@@ -17,7 +17,7 @@ __all__ = [
     "degree_assortativity", "triangle_counts", "clustering", "thesis_clustering", "clustering_by_degree",
     "sample_sources", "graph_distances", "heat_geodesics", "geodesic_distances", "distance_blocks",
     "DistanceHistogram", "distance_histogram", "source_block", "HISTOGRAM_BINS", "BLOCK_BUDGET",
-    "laplacian_spectrum",
+    "laplacian_spectrum", "DENSE_MAX",
     "SpectralDensity", "spectral_density", "density_quantiles", "spectrum_distance",
     "mesh_statistics", "plot_statistics", "SOURCES", "KNN", "CONCURRENT_VERTICES",
 ]

@@ -29,7 +29,7 @@ CONCURRENT_VERTICES = 50_000
 
 def mesh_statistics(mesh: Mesh, sources: int | None = None, seed: int = 0, knn: int | None = None,
                     spectrum_k: int | None = None, geodesics: tuple[str, ...] = ("edges", "knn", "heat"),
-                    progress: Callable[[str], None] | None = None) -> dict:
+                    dense_max: int = DENSE_MAX, progress: Callable[[str], None] | None = None) -> dict:
     """All ch.5 statistics of ``mesh``.
 
     Arguments:
@@ -41,8 +41,10 @@ def mesh_statistics(mesh: Mesh, sources: int | None = None, seed: int = 0, knn: 
         knn: neighbours of the kNN graph (default :data:`KNN`, at most V − 1; a given count
             above V − 1: the complete graph, with a warning).
         spectrum_k: exact eigenvalues at each end of the spectra (default None: the whole
-            spectrum, exact up to 3000 vertices, else estimated; :func:`laplacian_spectrum`).
+            spectrum: exact up to ``dense_max`` vertices, else estimated; :func:`laplacian_spectrum`).
         geodesics: the geodesic methods: ``"edges"``, ``"knn"``, ``"heat"``.
+        dense_max: meshes up to this many vertices get both whole spectra from a dense
+            eigensolver (cubic in V; default :data:`~jaxmesh.stats.DENSE_MAX`).
         progress: called with the name of each stage before it runs (the CLI prints it).
 
     Returns:
@@ -54,6 +56,8 @@ def mesh_statistics(mesh: Mesh, sources: int | None = None, seed: int = 0, knn: 
     for name, value in (("sources", sources), ("knn", knn)):
         if value is not None and (isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1):
             raise ValueError(f"{name} must be a positive int, got {value!r}")
+    if isinstance(dense_max, bool) or not isinstance(dense_max, (int, np.integer)) or dense_max < 0:
+        raise ValueError(f"dense_max must be a non-negative int, got {dense_max!r}")
     n = mesh.num_vertices
     if sources is None:
         sources = SOURCES                 # sample_sources takes every vertex of a smaller mesh
@@ -75,7 +79,7 @@ def mesh_statistics(mesh: Mesh, sources: int | None = None, seed: int = 0, knn: 
     ck, c_k = clustering_by_degree(graph, c)
     _, ct_k = clustering_by_degree(graph, ct)
     src = sample_sources(mesh, sources, seed)
-    dist, spec = _geodesics_and_spectra(mesh, src, geodesics, knn, spectrum_k, say)
+    dist, spec = _geodesics_and_spectra(mesh, src, geodesics, knn, (spectrum_k, dense_max), say)
     d = graph.degree
     connected = d > 0
     differ = connected & ~np.isclose(c, np.nan_to_num(ct, nan=-1))
@@ -89,7 +93,7 @@ def mesh_statistics(mesh: Mesh, sources: int | None = None, seed: int = 0, knn: 
         "clustering_formulas_differ_at": int(differ.sum()),
         "sources": int(len(src)),
         "seed": seed,
-        "spectrum": ("exact" if spectrum_k is None and mesh.num_vertices <= DENSE_MAX else
+        "spectrum": ("exact" if spectrum_k is None and mesh.num_vertices <= dense_max else
                      "estimated (kernel polynomial method)" if spectrum_k is None else f"{spectrum_k} at each end"),
     }
     for g, h in dist.items():
@@ -98,15 +102,16 @@ def mesh_statistics(mesh: Mesh, sources: int | None = None, seed: int = 0, knn: 
             "thesis_clustering": (ck, ct_k), "spectrum": spec, "geodesics": dist, "sources": src}
 
 
-def _geodesics_and_spectra(mesh, src, geodesics, knn, spectrum_k, say) -> tuple[dict, dict]:
-    """Each geodesic method's histogram from ``src`` and both Laplacian spectra."""
+def _geodesics_and_spectra(mesh, src, geodesics, knn, spectra, say) -> tuple[dict, dict]:
+    """Each geodesic method's histogram from ``src`` and both Laplacian spectra
+    (``spectra``: :func:`laplacian_spectrum`'s ``k`` and ``dense_max``)."""
     def job(task):
         what, name = task
         if what == "geodesics":
             say(f"{name} geodesics from {len(src)} sources")
             return distance_histogram(mesh, src, name, knn)
         say(f"{name} Laplacian spectrum")
-        return laplacian_spectrum(mesh, name, spectrum_k)
+        return laplacian_spectrum(mesh, name, *spectra)
 
     # on a small mesh the geodesics and spectra run beside each other on the cores, the heat method
     # (the longest) first: the graph searches hold Python's lock, the compiled programs do not.
