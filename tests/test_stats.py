@@ -38,6 +38,25 @@ def test_clustering_matches_networkx(real):
     np.testing.assert_array_equal(stats.triangle_counts(mesh), by_node(tri, mesh.num_vertices))
 
 
+@pytest.mark.parametrize("grouped", [True, False])
+def test_triangle_counts_by_out_degree_groups_or_one_group_match_networkx(monkeypatch, grouped):
+    """Both layouts of the forward search (one group per out-degree, the large-graph path; one
+    group) against networkx, on random faces (hubs, chords and triangles that are no face:
+    out-degrees spread far wider than a mesh's) and on a real mesh."""
+    import importlib
+
+    monkeypatch.setattr(importlib.import_module("jaxmesh.stats.clustering"), "GROUPED_VERTICES",
+                        0 if grouped else 10**9)
+    rng = np.random.default_rng(5)
+    faces = np.array([rng.choice(40, 3, replace=False) for _ in range(300)])
+    faces[:40] = [[0, *rng.choice(np.arange(1, 40), 2, replace=False)] for _ in range(40)]       # a hub
+    tangled = jaxmesh.Mesh.from_arrays(rng.normal(size=(45, 3)), faces, warn=False)             # 5 isolated
+    for mesh in (tangled, jaxmesh.load(shared_mesh_path("camelhead.ply"))):
+        want = by_node(nx.triangles(as_networkx(mesh)), mesh.num_vertices)
+        np.testing.assert_array_equal(stats.triangle_counts(mesh), want)
+    assert want.sum() > 0 and by_node(nx.triangles(as_networkx(tangled)), 45).max() > 20
+
+
 def test_degree_statistics_match_networkx(real):
     mesh, g = real
     n = mesh.num_vertices

@@ -13,11 +13,13 @@
 
 Triangles are counted exactly for any graph with the degree-ordered "forward"
 algorithm, vectorised: orient every edge from lower to higher (degree, index)
-rank, so each vertex keeps few out-neighbours (on meshes at most a handful);
-every triangle is then found exactly once as u -> v, u -> w, v -> w by
-intersecting the padded out-neighbour rows of u and v.  The ordering is numpy
-on the host; the intersection is one jitted XLA kernel (compiled once per
-graph size).
+rank, so each vertex keeps few out-neighbours (on meshes at most a handful, about
+three on average); every triangle is then found exactly once as u -> v, u -> w,
+v -> w, as an entry w of u's out-row found in the out-row of v, another entry of
+u's row.  The orientation and the padded out-rows are numpy on the host; the
+search is one jitted XLA kernel (compiled once per graph); on a large graph it takes
+the rows grouped by out-degree, so that a row of three out-neighbours looks up three
+rows, not as many as the widest row has.
 """
 
 from __future__ import annotations
@@ -28,25 +30,67 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._graph import MeshOrView, edges_and_degree
+from ._graph import MeshOrView, edges_and_degree, graph_view
 
 __all__ = ["triangle_counts", "clustering", "thesis_clustering", "clustering_by_degree"]
 
 
-@functools.partial(jax.jit, static_argnums=3)
-def _forward_triangles(u, v, out, n: int):
-    """Per vertex, the triangles u -> v, u -> w, v -> w found by intersecting the
-    out-neighbour rows of u and v (fused by XLA; no (E, K, K) array is stored).
-    The top vertex w = out[u, a] is credited through its slot: hits are summed per
-    (u, a) with a sorted segment sum (u is grouped), then scattered once per slot."""
-    ou, ov = out[u], out[v]                                            # (E, K)
-    hit = jnp.any(ou[:, :, None] == ov[:, None, :], axis=-1) & (ou >= 0)
-    per_edge = jnp.sum(hit, axis=1, dtype=jnp.int32)
-    t = jax.ops.segment_sum(per_edge, u, n, indices_are_sorted=True)
-    t = t + jax.ops.segment_sum(per_edge, v, n)
-    per_slot = jax.ops.segment_sum(hit.astype(jnp.int32), u, n, indices_are_sorted=True)   # (V, K)
-    tops = jnp.where(out >= 0, out, n).reshape(-1)
-    return t + jax.ops.segment_sum(per_slot.reshape(-1), tops, n + 1)[:n]
+#: graphs of at least this many vertices search their rows one group per out-degree (the search
+#: 1.6x faster at 556k vertices; its program about 0.4 s longer to compile); smaller ones
+#: as one group, as wide as the widest row
+GROUPED_VERTICES = 100_000
+
+
+@functools.partial(jax.jit, static_argnums=(2, 3))
+def _forward_triangles(out, order, groups: tuple[tuple[int, int, int], ...], n: int):
+    """t_v, for the out-rows ``out`` (V, K) (-1 padded) of an acyclic orientation.
+
+    Each group (start, size, width) is ``size`` rows ``order[start:start + size]`` of at
+    most ``width`` out-neighbours r_a.  A triangle u -> r_a -> r_b, u -> r_b is a hit
+    r_b ∈ out[r_a]; it is credited to u, to r_a and to r_b."""
+    t = jnp.zeros(n + 1, jnp.int32)
+    for start, size, width in groups:
+        rows = order[start:start + size]
+        r = out[rows, :width]                                                   # (m, w)
+        nb = out[jnp.maximum(r, 0)]                                             # (m, w, K): out[r_a]
+        real = r >= 0
+        hit = (jnp.any(r[:, None, :, None] == nb[:, :, None, :], axis=-1)
+               & real[:, :, None] & real[:, None, :])                           # (m, a, b)
+        t = t.at[rows].add(jnp.sum(hit, axis=(1, 2), dtype=jnp.int32))
+        credit = jnp.sum(hit, axis=2, dtype=jnp.int32) + jnp.sum(hit, axis=1, dtype=jnp.int32)
+        t = t.at[jnp.where(real, r, n).reshape(-1)].add(credit.reshape(-1))
+    return t[:n]
+
+
+def _out_rows(graph) -> tuple[np.ndarray, np.ndarray]:
+    """(out-rows (V, K) int32, -1 padded, out-degrees (V,)) of the orientation from lower to
+    higher (degree, index): u -> v iff (d_u, u) < (d_v, v)."""
+    _, deg = edges_and_degree(graph)
+    n = graph.num_vertices
+    src, dst = np.asarray(graph.src, np.int32), np.asarray(graph.dst, np.int32)  # grouped by src, in order
+    d = deg.astype(np.int32)
+    d_src, d_dst = np.repeat(d, deg), d[dst]
+    keep = (d_src < d_dst) | ((d_src == d_dst) & (src < dst))
+    u, v = src[keep], dst[keep]                        # still grouped by u
+    count = np.bincount(u, minlength=n)
+    width = max(int(count.max(initial=0)), 1)
+    slot = np.arange(len(u), dtype=np.int32) - np.repeat((np.cumsum(count) - count).astype(np.int32), count)
+    out = np.full(n * width, -1, np.int32)
+    out[u * width + slot] = v
+    return out.reshape(n, width), count
+
+
+def _groups(count: np.ndarray) -> tuple[np.ndarray, tuple[tuple[int, int, int], ...]]:
+    """(rows by ascending out-degree, ((start, size, width), ...)): the rows of out-degree ≥ 1,
+    one group per out-degree on a graph of :data:`GROUPED_VERTICES` or more, else one group."""
+    small = np.int8 if count.max() < 128 else np.int32              # numpy radix-sorts 8-bit keys
+    order = np.argsort(count.astype(small), kind="stable").astype(np.int32)
+    by_degree = count[order]
+    present = np.flatnonzero(np.bincount(count)[1:]) + 1                # the out-degrees ≥ 1 that occur
+    widths = present if len(count) >= GROUPED_VERTICES else present[-1:]
+    starts = np.searchsorted(by_degree, np.r_[1, widths[:-1] + 1])
+    ends = np.searchsorted(by_degree, widths, side="right")
+    return order, tuple((int(a), int(b - a), int(w)) for a, b, w in zip(starts, ends, widths))
 
 
 def triangle_counts(mesh: MeshOrView) -> np.ndarray:
@@ -57,20 +101,12 @@ def triangle_counts(mesh: MeshOrView) -> np.ndarray:
 
     Returns:
         t_v, (V,) integers."""
-    _, deg = edges_and_degree(mesh)
-    n = mesh.num_vertices
-    src, dst = np.asarray(mesh.src, np.int32), np.asarray(mesh.dst, np.int32)  # grouped by src
-    rank = np.empty(n, np.int32)
-    rank[np.argsort(deg, kind="stable")] = np.arange(n, dtype=np.int32)
-    keep = rank[src] < rank[dst]                       # u -> v from lower to higher rank
-    u, v = src[keep], dst[keep]                        # still grouped by u
-    if len(u) == 0:
-        return np.zeros(n, np.int64)
-    count = np.bincount(u, minlength=n)
-    start = np.cumsum(count) - count
-    out = np.full((n, int(count.max())), -1, np.int32)
-    out[u, np.arange(len(u)) - start[u]] = v
-    return np.asarray(_forward_triangles(u, v, out, n), np.int64)
+    graph = graph_view(mesh)
+    out, count = _out_rows(graph)
+    if not count.any():
+        return np.zeros(graph.num_vertices, np.int64)
+    order, groups = _groups(count)
+    return np.asarray(_forward_triangles(out, order, groups, graph.num_vertices), np.int64)
 
 
 def clustering(mesh: MeshOrView) -> np.ndarray:
@@ -81,8 +117,9 @@ def clustering(mesh: MeshOrView) -> np.ndarray:
 
     Returns:
         C(v), (V,)."""
-    _, d = edges_and_degree(mesh)
-    t = triangle_counts(mesh)
+    graph = graph_view(mesh)
+    _, d = edges_and_degree(graph)
+    t = triangle_counts(graph)
     den = d * (d - 1)
     return np.where(den > 0, 2 * t / np.where(den > 0, den, 1), 0.0)
 

@@ -77,12 +77,13 @@ def degree_assortativity(mesh: MeshOrView) -> float:
     Returns:
         r in [−1, 1], or NaN."""
     e, d = edges_and_degree(mesh)
-    j, k = d[e[:, 0]].astype(np.float64), d[e[:, 1]].astype(np.float64)
     m = len(e)
     if m == 0:
         return float("nan")
-    # Newman's closed form over the m undirected edges (each counted in both orientations)
-    mean = (j.sum() + k.sum()) / (2 * m)
-    cov = (j @ k) / m - mean * mean
-    var = (j @ j + k @ k) / (2 * m) - mean * mean
+    # Newman's closed form over the m undirected edges, each counted in both orientations: there
+    # vertex v is an end d_v times, so Σ (j + k) = Σ_v d_v² and Σ (j² + k²) = Σ_v d_v³ (exact integers)
+    mean = float(np.sum(d * d)) / (2 * m)
+    var = float(np.sum(d * d * d)) / (2 * m) - mean * mean
+    df = d.astype(np.float64)
+    cov = float(df[e[:, 0]] @ df[e[:, 1]]) / m - mean * mean
     return float(cov / var) if var > 1e-12 * mean * mean else float("nan")
