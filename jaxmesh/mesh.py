@@ -54,22 +54,34 @@ def build_topology(faces: np.ndarray, num_vertices: int) -> dict[str, np.ndarray
     b = f[:, [2, 0, 1]]
     keys, inverse = _unique_inverse((np.minimum(a, b) * kt(m) + np.maximum(a, b)).ravel())
     edges = np.stack([keys // m, keys % m], axis=1)
-    num_edges = len(edges)
-    src = np.concatenate([edges[:, 0], edges[:, 1]])
-    dst = np.concatenate([edges[:, 1], edges[:, 0]])
-    edge_of = np.concatenate([np.arange(num_edges), np.arange(num_edges)])
-    # one key per directed edge, all distinct: any sort gives the one sorting permutation
-    order = radix_argsort(src * kt(m) + dst)
-    degree = np.bincount(src, minlength=m)
+    src, dst, edge_of = _directed(edges, m)
     as32 = lambda x: np.ascontiguousarray(x, dtype=np.int32)  # noqa: E731
     return {
         "edges": as32(edges.reshape(-1, 2)),
         "face_edges": as32(inverse.reshape(-1, 3)),
-        "src": as32(src[order]),
-        "dst": as32(dst[order]),
-        "edge_of": as32(edge_of[order]),
-        "degree": as32(degree),
+        "src": as32(src),
+        "dst": as32(dst),
+        "edge_of": as32(edge_of),
+        "degree": as32(np.bincount(edges.ravel(), minlength=m)),
     }
+
+
+def _directed(edges: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(src, dst, edge_of) of both directions of the lexicographically sorted edges i < j, sorted
+    by (src, dst) without sorting them: vertex s's run is its edges j -> s (every i < s, taken
+    in order of i by a stable sort of the edges on j) followed by its edges s -> j (already in
+    order of j)."""
+    i, j = edges[:, 0], edges[:, 1]
+    by_j = radix_argsort(j)
+    into, out = np.bincount(j, minlength=m), np.bincount(i, minlength=m)    # per vertex: runs j -> s, s -> j
+    start = np.cumsum(into + out) - (into + out)
+    ranks = np.arange(len(edges))
+    at_in = start[j[by_j]] + ranks - np.repeat(np.cumsum(into) - into, into)          # j -> s runs, in by_j order
+    at_out = start[i] + into[i] + ranks - np.repeat(np.cumsum(out) - out, out)        # i -> j runs, in edge order
+    src, dst, edge_of = (np.empty(2 * len(edges), edges.dtype) for _ in range(3))
+    src[at_in], dst[at_in], edge_of[at_in] = j[by_j], i[by_j], by_j
+    src[at_out], dst[at_out], edge_of[at_out] = i, j, ranks
+    return src, dst, edge_of
 
 
 def radix_argsort(keys: np.ndarray) -> np.ndarray:
