@@ -76,7 +76,7 @@ def _out_rows(graph) -> tuple[np.ndarray, np.ndarray]:
     width = max(int(count.max(initial=0)), 1)
     slot = np.arange(len(u), dtype=np.int32) - np.repeat((np.cumsum(count) - count).astype(np.int32), count)
     out = np.full(n * width, -1, np.int32)
-    out[u * width + slot] = v
+    out[u.astype(np.int64) * width + slot] = v
     return out.reshape(n, width), count
 
 

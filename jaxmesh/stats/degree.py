@@ -81,9 +81,9 @@ def degree_assortativity(mesh: MeshOrView) -> float:
     if m == 0:
         return float("nan")
     # Newman's closed form over the m undirected edges, each counted in both orientations: there
-    # vertex v is an end d_v times, so Σ (j + k) = Σ_v d_v² and Σ (j² + k²) = Σ_v d_v³ (exact integers)
-    mean = float(np.sum(d * d)) / (2 * m)
-    var = float(np.sum(d * d * d)) / (2 * m) - mean * mean
+    # vertex v is an end d_v times, so Σ (j + k) = Σ_v d_v² and Σ (j² + k²) = Σ_v d_v³
     df = d.astype(np.float64)
+    mean = float(df @ df) / (2 * m)
+    var = float((df * df) @ df) / (2 * m) - mean * mean
     cov = float(df[e[:, 0]] @ df[e[:, 1]]) / m - mean * mean
     return float(cov / var) if var > 1e-12 * mean * mean else float("nan")
