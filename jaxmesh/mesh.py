@@ -48,7 +48,7 @@ def build_topology(faces: np.ndarray, num_vertices: int) -> dict[str, np.ndarray
     Returns:
         A dict of int32 arrays (listed above)."""
     m = int(num_vertices)
-    kt = np.int32 if m * m < 2**31 else np.int64          # keys i·m + j; 32-bit ones sort faster
+    kt = np.int32 if m * m < 2**31 else np.int64          # keys i·m + j, 32-bit where they fit
     f = np.asarray(faces, dtype=kt)
     a = f[:, [1, 2, 0]]
     b = f[:, [2, 0, 1]]
@@ -75,13 +75,19 @@ def _directed(edges: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray, np.nda
     by_j = radix_argsort(j)
     into, out = np.bincount(j, minlength=m), np.bincount(i, minlength=m)    # per vertex: runs j -> s, s -> j
     start = np.cumsum(into + out) - (into + out)
-    ranks = np.arange(len(edges))
-    at_in = start[j[by_j]] + ranks - np.repeat(np.cumsum(into) - into, into)          # j -> s runs, in by_j order
-    at_out = start[i] + into[i] + ranks - np.repeat(np.cumsum(out) - out, out)        # i -> j runs, in edge order
+    at_in = start[j[by_j]] + ranks_in_runs(into)                      # j -> s runs, in by_j order
+    at_out = start[i] + into[i] + ranks_in_runs(out)                  # i -> j runs, in edge order
     src, dst, edge_of = (np.empty(2 * len(edges), edges.dtype) for _ in range(3))
     src[at_in], dst[at_in], edge_of[at_in] = j[by_j], i[by_j], by_j
-    src[at_out], dst[at_out], edge_of[at_out] = i, j, ranks
+    src[at_out], dst[at_out], edge_of[at_out] = i, j, np.arange(len(edges))
     return src, dst, edge_of
+
+
+def ranks_in_runs(counts: np.ndarray) -> np.ndarray:
+    """For items laid out in consecutive runs of ``counts[r]`` items, each item's position in
+    its run: 0, 1, …, counts[0] − 1, 0, 1, …, counts[1] − 1, …"""
+    counts = np.asarray(counts)
+    return np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
 
 
 def radix_argsort(keys: np.ndarray) -> np.ndarray:

@@ -204,9 +204,9 @@ def test_build_topology_against_a_plain_reference(num_vertices):
 
 
 def test_radix_argsort_is_numpys_stable_argsort():
-    """Duplicates kept in input order, keys of 1 to 63 bits, int32 and uint64, empty; negative or
+    """(And the positions of items in their runs, by hand.)  Duplicates kept in input order, keys of 1 to 63 bits, int32 and uint64, empty; negative or
     float keys refused."""
-    from jaxmesh.mesh import radix_argsort
+    from jaxmesh.mesh import radix_argsort, ranks_in_runs
 
     rng = np.random.default_rng(0)
     for top in (1, 2**16, 2**31 - 1, 2**40, 2**62):
@@ -215,6 +215,7 @@ def test_radix_argsort_is_numpys_stable_argsort():
         for k in (keys, keys.astype(np.uint64)) + ((keys.astype(np.int32),) if top < 2**31 else ()):
             np.testing.assert_array_equal(radix_argsort(k), np.argsort(k, kind="stable"))
     assert radix_argsort(np.zeros(0, np.int32)).shape == (0,)
+    np.testing.assert_array_equal(ranks_in_runs(np.array([2, 0, 3, 1])), [0, 1, 0, 1, 2, 0])     # by hand
     for bad in (np.array([3, -1]), np.array([0.5, 1.0])):
         with pytest.raises(ValueError, match="non-negative integer keys"):
             radix_argsort(bad)

@@ -39,7 +39,7 @@ import scipy.sparse as sp
 from jaxtyping import Array, Bool, Float, Int
 
 from .._private import lift, safe_divide, safe_norm
-from ..mesh import Mesh, to_device
+from ..mesh import Mesh, ranks_in_runs, to_device
 
 __all__ = ["FaceGraph", "RingTier", "RING_TIERS", "face_graph", "ring_tiers", "face_centroids", "centroid_spacing"]
 
@@ -94,7 +94,7 @@ def _padded_rows(mat: sp.csr_matrix, fill: np.ndarray) -> tuple[np.ndarray, np.n
     index = np.repeat(np.asarray(fill)[:, None], k, axis=1)
     mask = np.zeros((rows, k), bool)
     row = np.repeat(np.arange(rows), counts)
-    col = np.arange(mat.indices.size) - np.repeat(mat.indptr[:-1], counts)
+    col = ranks_in_runs(counts)
     index[row, col] = mat.indices
     mask[row, col] = True
     return index, mask

@@ -30,6 +30,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..mesh import radix_argsort, ranks_in_runs
 from ._graph import MeshOrView, edges_and_degree, graph_view
 
 __all__ = ["triangle_counts", "clustering", "thesis_clustering", "clustering_by_degree"]
@@ -74,17 +75,15 @@ def _out_rows(graph) -> tuple[np.ndarray, np.ndarray]:
     u, v = src[keep], dst[keep]                        # still grouped by u
     count = np.bincount(u, minlength=n)
     width = max(int(count.max(initial=0)), 1)
-    slot = np.arange(len(u), dtype=np.int32) - np.repeat((np.cumsum(count) - count).astype(np.int32), count)
     out = np.full(n * width, -1, np.int32)
-    out[u.astype(np.int64) * width + slot] = v
+    out[u.astype(np.int64) * width + ranks_in_runs(count)] = v
     return out.reshape(n, width), count
 
 
 def _groups(count: np.ndarray) -> tuple[np.ndarray, tuple[tuple[int, int, int], ...]]:
     """(rows by ascending out-degree, ((start, size, width), ...)): the rows of out-degree ≥ 1,
     one group per out-degree on a graph of :data:`GROUPED_VERTICES` or more, else one group."""
-    small = np.int8 if count.max() < 128 else np.int32              # numpy radix-sorts 8-bit keys
-    order = np.argsort(count.astype(small), kind="stable").astype(np.int32)
+    order = radix_argsort(count).astype(np.int32)
     by_degree = count[order]
     present = np.flatnonzero(np.bincount(count)[1:]) + 1                # the out-degrees ≥ 1 that occur
     widths = present if len(count) >= GROUPED_VERTICES else present[-1:]
