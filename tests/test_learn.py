@@ -13,11 +13,16 @@ import trimesh
 
 import jaxmesh
 from jaxmesh.denoise import METHODS, denoise, face_graph
-from jaxmesh.learn import (DEFAULT_MODEL, LearnedDenoiser, ModelConfig, NoiseRange, TrainConfig, default_model,
-                           draw_noise, example, file_sha256, init_model, learned_denoising, load_model,
-                           roughness_features, save_model, stage_parameters, train, training_loss)
+from jaxmesh.denoise import impulse_repair
+from jaxmesh.learn import (DEFAULT_MODEL, REPAIR_ALPHA0, LearnedDenoiser, ModelConfig, NoiseRange, TrainConfig,
+                           default_model, draw_noise, example, file_sha256, init_model, learned_denoising,
+                           load_model, repair_parameters, roughness_features, save_model, stage_parameters, train,
+                           training_loss)
 
 SMALL = ModelConfig(stages=2, smooth_iterations=1, normal_iterations=2, vertex_iterations=2, width=4)
+#: SMALL with every optional part: an impulse-repair stage, gated stages, tail features
+FULL = ModelConfig(stages=2, smooth_iterations=1, normal_iterations=2, vertex_iterations=2, width=4,
+                   repair_rounds=2, gated=True, tail_features=True)
 
 
 @pytest.fixture(scope="module")
@@ -35,8 +40,9 @@ def _randomised(model: LearnedDenoiser, seed: int = 0) -> LearnedDenoiser:
     """``model`` with every weight drawn at random (small), so both networks matter."""
     leaves, treedef = jax.tree_util.tree_flatten(eqx.filter(model, eqx.is_array))
     keys = jax.random.split(jax.random.PRNGKey(seed), len(leaves))
-    new = [0.3 * jax.random.normal(k, leaf.shape, leaf.dtype) + (leaf if leaf.ndim == 2 and leaf.shape[1] == 5
-                                                                   else 0) for k, leaf in zip(keys, leaves)]
+    bases = {id(model.stage_base), id(model.repair_base)}
+    new = [0.3 * jax.random.normal(k, leaf.shape, leaf.dtype) + (leaf if id(leaf) in bases else 0)
+           for k, leaf in zip(keys, leaves)]
     return eqx.combine(jax.tree_util.tree_unflatten(treedef, new), model)
 
 
@@ -51,14 +57,27 @@ def test_initial_model_is_the_registry_defaults_on_every_mesh(sphere, noisy):
     assert z.shape == (3,) and np.all(z > z2), "noise raises every roughness feature"
 
 
-def test_features_are_scale_and_rotation_invariant(noisy):
-    z = roughness_features(noisy, noisy.vertices)
+@pytest.mark.parametrize("tails", [False, True])
+def test_features_are_scale_and_rotation_invariant(noisy, tails):
+    z = roughness_features(noisy, noisy.vertices, tails)
     r = jnp.asarray(trimesh.transformations.rotation_matrix(0.7, [1, 2, 3])[:3, :3])
-    np.testing.assert_allclose(roughness_features(noisy, 3.0 * noisy.vertices @ r.T), z, atol=1e-9)
+    np.testing.assert_allclose(roughness_features(noisy, 3.0 * noisy.vertices @ r.T, tails), z, atol=1e-9)
 
 
-def test_gradient_in_positions_and_parameters_matches_finite_differences(sphere, noisy):
-    model = _randomised(init_model(SMALL, 2))
+def test_tail_features_read_impulsive_noise(sphere, noisy):
+    """The two tail ratios extend the three medians, and impulsive noise (a few vertices far
+    out) has heavier tails than Gaussian noise on every vertex."""
+    z3, z5 = roughness_features(sphere, noisy.vertices), roughness_features(sphere, noisy.vertices, True)
+    assert z5.shape == (5,)
+    np.testing.assert_allclose(z5[:3], z3, rtol=1e-12)
+    spikes = jaxmesh.add_noise(sphere, 0.6, 3, along_normals=True, fraction=0.2)
+    zi = roughness_features(sphere, spikes.vertices, True)
+    assert np.all(zi[3:] > z5[3:] + 0.2), (zi, z5)
+
+
+@pytest.mark.parametrize("config", [SMALL, FULL], ids=["plain", "full"])
+def test_gradient_in_positions_and_parameters_matches_finite_differences(sphere, noisy, config):
+    model = _randomised(init_model(config, 2))
     graph = face_graph(sphere)
     params, static = eqx.partition(model, eqx.is_array)
     loss = lambda p, y: training_loss(eqx.combine(p, static), sphere, y, graph, 1.0)  # noqa: E731
@@ -80,8 +99,9 @@ def test_gradient_in_positions_and_parameters_matches_finite_differences(sphere,
     assert any(float(jnp.abs(x).max()) > 0 for x in face_grad), "the face net is used"
 
 
-def test_jit_equals_eager_and_vmap_equals_a_loop(sphere):
-    model = _randomised(init_model(SMALL, 3))
+@pytest.mark.parametrize("config", [SMALL, FULL], ids=["plain", "full"])
+def test_jit_equals_eager_and_vmap_equals_a_loop(sphere, config):
+    model = _randomised(init_model(config, 3))
     graph = face_graph(sphere)
     ys = jnp.stack([jaxmesh.add_noise(sphere, s, k).vertices for s, k in ((0.2, 0), (0.5, 1))])
     eager = [learned_denoising(sphere.with_vertices(y), model, graph).vertices for y in ys]
@@ -112,6 +132,52 @@ def test_model_file_round_trip_and_checkpoint(tmp_path):
     m2, s2, meta = load_model(path, extra=state)
     assert meta == {"step": 3}
     assert int(s2[0].count) == 0 and jax.tree_util.tree_structure(s2) == jax.tree_util.tree_structure(state)
+
+
+def test_gates_shut_leave_the_mesh_and_open_give_the_repair(sphere):
+    """With every gate shut the stack returns its input; with the repair gate open and the
+    stages shut it is the registry's impulse repair with the model's α, exactly."""
+    model = _randomised(init_model(FULL, 6))
+    graph = face_graph(sphere)
+    spikes = jaxmesh.add_noise(sphere, 0.5, 4, along_normals=True, fraction=0.3)
+    shut = eqx.tree_at(lambda m: (m.stage_base, m.repair_base), model,
+                       (model.stage_base.at[:, 5].set(-60.0), model.repair_base.at[0].set(-60.0)))
+    np.testing.assert_allclose(learned_denoising(spikes, shut, graph).vertices, spikes.vertices, atol=1e-12)
+    opened = eqx.tree_at(lambda m: m.repair_base, shut, shut.repair_base.at[0].set(60.0))
+    z = roughness_features(spikes, spikes.vertices, True)
+    alpha = repair_parameters(opened, z)["alpha"]
+    want = impulse_repair(spikes, alpha, REPAIR_ALPHA0, FULL.repair_rounds).vertices
+    np.testing.assert_allclose(learned_denoising(spikes, opened, graph).vertices, want, atol=1e-12)
+    assert float(jnp.max(jnp.abs(want - spikes.vertices))) > 0.05, "the repair moves the spikes"
+    with pytest.raises(ValueError, match="no repair stage"):
+        repair_parameters(init_model(SMALL), z)
+
+
+def test_a_file_without_the_optional_parts_loads_as_the_plain_stack(tmp_path):
+    """A model file whose config predates the optional parts (no ``repair_rounds``,
+    ``gated``, ``tail_features`` keys) is the plain stack, and the full model round-trips."""
+    plain, full = _randomised(init_model(SMALL, 7)), _randomised(init_model(FULL, 8))
+    path = tmp_path / "old.jxl"
+    save_model(path, plain)
+    head, rest = path.read_bytes().split(b"\n", 1)
+    header = json.loads(head)
+    for key in ("repair_rounds", "gated", "tail_features"):
+        del header["config"][key]
+    path.write_bytes(json.dumps(header).encode() + b"\n" + rest)
+    back = load_model(path)
+    assert back.config == SMALL and back.repair_base is None
+    save_model(tmp_path / "full.jxl", full)
+    again = load_model(tmp_path / "full.jxl")
+    assert again.config == FULL
+    for a, b in zip(jax.tree_util.tree_leaves(full), jax.tree_util.tree_leaves(again)):
+        np.testing.assert_array_equal(a, b)
+    for key, value, message in (("gated", 1, "gated must be a bool|not a jaxmesh model config"),
+                                ("repair_rounds", -1, r"repair_rounds must be an int in \[0, 64\]")):
+        bad = json.loads(head)
+        bad["config"][key] = value
+        path.write_bytes(json.dumps(bad).encode() + b"\n" + rest)
+        with pytest.raises(ValueError, match=message):      # the check (or, under the suite's type
+            load_model(path)                                # checking, the constructor) refuses it
 
 
 @pytest.mark.parametrize("damage,message", [

@@ -15,10 +15,18 @@ positions x:
    σ_r,f = σ_{r,s} · ρ_f per face;
 4. ``vertex_iterations`` steps of the shared vertex update with tangential relaxation t_s.
 
-The per-stage parameters θ_s = (log λ_s, log σ_s, log σ_r, logit α_s, logit t_s) are
-θ̄_s + G(z), G a small MLP of the mesh's global roughness features z (three medians,
-:func:`roughness_features`), so the stack adapts to the noise level and the noise
-model without a search.  The per-face factor ρ_f = exp(tanh(R(u_f))) comes from a second
+With ``gated``, the stage moves the positions only by a learned step g_s ∈ (0, 1):
+x ← x + g_s (x_stage − x), so the stack can do less than full stages where the noise is
+light.  With ``repair_rounds`` R > 0 an impulse-repair stage runs first,
+y ← y + g_r (IR_α(y) − y), IR_α the registry's :func:`~jaxmesh.denoise.impulse_repair`
+(R read-and-fit rounds with a learned thin-plate weight α), g_r ∈ (0, 1) a learned gate:
+the robust refit impulsive noise needs, used as much as the mesh calls for.
+
+The per-stage parameters θ_s = (log λ_s, log σ_s, log σ_r, logit α_s, logit t_s[, logit
+g_s]) are θ̄_s + G(z), G a small MLP of the mesh's global roughness features z (three
+medians, plus with ``tail_features`` two tail ratios; :func:`roughness_features`), so the
+stack adapts to the noise level and the noise model without a search; the repair stage's
+(logit g_r, log α) are r̄ + G(z) likewise.  The per-face factor ρ_f = exp(tanh(R(u_f))) comes from a second
 MLP R of local features u_f (the face's normal deviation from its ring, relative to the
 mesh's median deviation, and z).
 
@@ -42,6 +50,7 @@ from ..denoise._loop import iterate
 from ..denoise.bilateral_normal import joint_bilateral_normals, spatial_weights
 from ..denoise.face_graph import FaceGraph, face_graph
 from ..denoise.guided import guidance_normals
+from ..denoise.impulse_repair import impulse_repair
 from ..denoise.normal_filtering import ring_sum
 from ..denoise.vertex_update import vertex_update
 from ..geometry import face_areas, face_normals, mean_edge_length, vertex_normals
@@ -49,14 +58,20 @@ from ..mesh import Mesh
 from ..operators import taubin_pair, umbrella
 
 __all__ = ["ModelConfig", "LearnedDenoiser", "init_model", "roughness_features", "stage_parameters",
-           "learned_denoising", "STAGE_PARAMETERS"]
+           "repair_parameters", "learned_denoising", "STAGE_PARAMETERS", "REPAIR_PARAMETERS",
+           "REPAIR_ALPHA0"]
 
 #: the per-stage parameters, in the order of :attr:`LearnedDenoiser.stage_base`'s columns
 STAGE_PARAMETERS = ("log_lam", "log_sigma_s", "log_sigma_r", "logit_guidance", "logit_tangential")
-#: θ̄_s at initialisation: λ = 0.05, σ_s = 1, σ_r = 0.35, α = 0.5, t = 0.1 (the registry's defaults)
-_INITIAL = (-3.0, 0.0, -1.05, 0.0, -2.2)
-_FEATURES = 3
-_FACE_FEATURES = 1 + _FEATURES
+#: the repair stage's parameters, in the order of :attr:`LearnedDenoiser.repair_base`
+REPAIR_PARAMETERS = ("logit_repair", "log_alpha")
+#: θ̄_s at initialisation: λ = 0.05, σ_s = 1, σ_r = 0.35, α = 0.5, t = 0.1 (the registry's
+#: defaults), and with ``gated`` g_s = 0.95 (nearly the full stage)
+_INITIAL = (-3.0, 0.0, -1.05, 0.0, -2.2, 3.0)
+#: r̄ at initialisation: g_r = 0.5, α = 0.3 (the registry's default)
+_REPAIR_INITIAL = (0.0, -1.2)
+#: the first impulse-repair fit's thin-plate weight α₀ (the registry's default)
+REPAIR_ALPHA0 = 3.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -69,26 +84,46 @@ class ModelConfig:
     normal_iterations: int = 6
     vertex_iterations: int = 10
     width: int = 16
+    repair_rounds: int = 0
+    gated: bool = False
+    tail_features: bool = False
 
     def check(self) -> "ModelConfig":
-        """Raise ``ValueError`` naming the field when a count is out of range (1–64, width 1–256)."""
-        for name in ("stages", "smooth_iterations", "normal_iterations", "vertex_iterations", "width"):
+        """Raise ``ValueError`` naming the field when a count is out of range (1–64, width
+        1–256, repair_rounds 0–64) or a switch is not a bool."""
+        for name in ("stages", "smooth_iterations", "normal_iterations", "vertex_iterations", "width",
+                     "repair_rounds"):
             value = getattr(self, name)
-            top = 256 if name == "width" else 64
-            if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= top:
-                raise ValueError(f"model {name} must be an int in [1, {top}], got {value!r}")
+            lo, top = (0 if name == "repair_rounds" else 1), (256 if name == "width" else 64)
+            if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= top:
+                raise ValueError(f"model {name} must be an int in [{lo}, {top}], got {value!r}")
+        for name in ("gated", "tail_features"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f"model {name} must be a bool, got {getattr(self, name)!r}")
         return self
+
+    @property
+    def features(self) -> int:
+        """The number of global features z (:func:`roughness_features`)."""
+        return 5 if self.tail_features else 3
+
+    @property
+    def stage_parameters(self) -> int:
+        """The number of parameters of each stage (5, or 6 with ``gated``)."""
+        return len(STAGE_PARAMETERS) + (1 if self.gated else 0)
 
 
 class LearnedDenoiser(eqx.Module):
     """The trainable denoiser's weights (module docstring); ``config`` is static.
 
-    ``stage_base``: θ̄, (S, 5); ``stage_net``: G, global features → (S·5) offsets;
-    ``face_net``: R, per-face features → the log range factor."""
+    ``stage_base``: θ̄, (S, P); ``stage_net``: G, global features → S·P (+ 2 with a repair
+    stage) offsets; ``face_net``: R, per-face features → the log range factor;
+    ``repair_base``: r̄, (2,), or None without a repair stage."""
 
     stage_base: Float[Array, "S P"]
     stage_net: eqx.nn.MLP
     face_net: eqx.nn.MLP
+    repair_base: Float[Array, "2"] | None
     config: ModelConfig = eqx.field(static=True)
 
 
@@ -106,17 +141,19 @@ def init_model(config: ModelConfig = ModelConfig(), key=0) -> LearnedDenoiser:
     k = jax.random.PRNGKey(key) if isinstance(key, int) else key
     k1, k2 = jax.random.split(k)
     dtype = jnp.result_type(float)
-    nparams = config.stages * len(STAGE_PARAMETERS)
-    stage_net = eqx.nn.MLP(_FEATURES, nparams, config.width, 1, activation=jnp.tanh, key=k1, dtype=dtype)
-    face_net = eqx.nn.MLP(_FACE_FEATURES, 1, config.width, 1, activation=jnp.tanh, key=k2, dtype=dtype)
+    repair = config.repair_rounds > 0
+    nparams = config.stages * config.stage_parameters + (len(REPAIR_PARAMETERS) if repair else 0)
+    stage_net = eqx.nn.MLP(config.features, nparams, config.width, 1, activation=jnp.tanh, key=k1, dtype=dtype)
+    face_net = eqx.nn.MLP(1 + config.features, 1, config.width, 1, activation=jnp.tanh, key=k2, dtype=dtype)
 
     def zero_last(net):
         last = net.layers[-1]
         return eqx.tree_at(lambda m: (m.layers[-1].weight, m.layers[-1].bias), net,
                            (jnp.zeros_like(last.weight), jnp.zeros_like(last.bias)))
 
-    base = jnp.tile(jnp.asarray(_INITIAL, dtype), (config.stages, 1))
-    return LearnedDenoiser(base, zero_last(stage_net), zero_last(face_net), config)
+    base = jnp.tile(jnp.asarray(_INITIAL[:config.stage_parameters], dtype), (config.stages, 1))
+    repair_base = jnp.asarray(_REPAIR_INITIAL, dtype) if repair else None
+    return LearnedDenoiser(base, zero_last(stage_net), zero_last(face_net), repair_base, config)
 
 
 def _median(a: Float[Array, "*batch n"]) -> Float[Array, "*batch"]:
@@ -130,48 +167,87 @@ def _ring_deviation(mesh: Mesh, x: Float[Array, "*batch V 3"]) -> Float[Array, "
     return safe_norm(n - safe_normalize(ring_sum(mesh, a[..., None] * n)))
 
 
-def roughness_features(mesh: Mesh, x: Float[Array, "*batch V 3"]) -> Float[Array, "*batch 3"]:
-    """z = log of three medians of the noisy mesh: the face normals' deviation from their
-    rings' mean normal; |m_i · (K x)_i| / ℓ̄ (the umbrella vector along the vertex normal
-    m_i); and ‖(K x)_i − (m_i · (K x)_i) m_i‖ / ℓ̄ (its part within the surface).  Scale-
-    and rotation-invariant; the last two read the noise's amplitude and its tangential share.
+def _tail(a: Float[Array, "*batch n"]) -> Float[Array, "*batch"]:
+    """q₉₀ / q₅₀ of a non-negative sample: how heavy its upper tail is."""
+    q = jnp.quantile(a, jnp.asarray([0.5, 0.9], a.dtype), axis=-1)
+    return q[1] / (q[0] + 1e-9)
+
+
+def roughness_features(mesh: Mesh, x: Float[Array, "*batch V 3"], tails: bool = False
+                       ) -> Float[Array, "*batch Z"]:
+    """z = log of three medians of the noisy mesh: the face normals' deviation d_f from
+    their rings' mean normal; |m_i · (K x)_i| / ℓ̄ (the umbrella vector along the vertex
+    normal m_i); and ‖(K x)_i − (m_i · (K x)_i) m_i‖ / ℓ̄ (its part within the surface).
+    With ``tails``, also log q₉₀/q₅₀ of |m_i · (K x)_i| and of d_f: heavy tails mark
+    impulsive noise (a few vertices far out, the rest untouched) and sharp features.
+    Scale- and rotation-invariant; the medians read the noise's amplitude and its
+    tangential share.
 
     Arguments:
         mesh: the mesh (connectivity).
         x: its positions, (*batch, V, 3).
+        tails: add the two tail ratios (Z = 5, else 3).
 
     Returns:
-        z, (*batch, 3)."""
+        z, (*batch, Z)."""
     geo = mesh.with_vertices(x)
     ell = mean_edge_length(geo)[..., None]
     k = umbrella(mesh, x)
     m = vertex_normals(geo, "area")
-    along = dot(k, m)
-    across = safe_norm(k - along[..., None] * m)
-    feats = [_median(_ring_deviation(mesh, x)), _median(jnp.abs(along) / ell), _median(across / ell)]
+    along = jnp.abs(dot(k, m))
+    across = safe_norm(k - dot(k, m)[..., None] * m)
+    dev = _ring_deviation(mesh, x)
+    feats = [_median(dev), _median(along / ell), _median(across / ell)]
+    if tails:
+        feats += [_tail(along), _tail(dev)]
     return jnp.log(jnp.stack(feats, axis=-1) + 1e-6)
 
 
-def stage_parameters(model: LearnedDenoiser, z: Float[Array, "*batch 3"]) -> dict[str, Float[Array, "*batch S"]]:
-    """The per-stage parameters θ_s = θ̄_s + G(z), mapped to their ranges: λ ∈ (0, 0.9),
-    σ_s, σ_r > 0, α, t ∈ (0, 1) (t ≤ 0.5).
-
-    Arguments:
-        model: the denoiser.
-        z: the global features, (*batch, 3) (:func:`roughness_features`).
-
-    Returns:
-        ``{"lam", "sigma_s", "sigma_r", "guidance", "tangential"}``, each (*batch, S)."""
-    s, p = model.config.stages, len(STAGE_PARAMETERS)
+def _network_outputs(model: LearnedDenoiser, z: Float[Array, "*batch Z"]) -> Float[Array, "*batch N"]:
     net = model.stage_net
     for _ in range(z.ndim - 1):
         net = jax.vmap(net)
-    theta = lift(model.stage_base, z.ndim + 1) + net(z).reshape(*z.shape[:-1], s, p)
-    return {"lam": 0.9 * jnp.minimum(jnp.exp(theta[..., 0]), 1.0),
-            "sigma_s": jnp.exp(jnp.clip(theta[..., 1], -2.5, 2.5)),
-            "sigma_r": jnp.exp(jnp.clip(theta[..., 2], -4.0, 1.5)),
-            "guidance": jax.nn.sigmoid(theta[..., 3]),
-            "tangential": 0.5 * jax.nn.sigmoid(theta[..., 4])}
+    return net(z)
+
+
+def stage_parameters(model: LearnedDenoiser, z: Float[Array, "*batch Z"]) -> dict[str, Float[Array, "*batch S"]]:
+    """The per-stage parameters θ_s = θ̄_s + G(z), mapped to their ranges: λ ∈ (0, 0.9),
+    σ_s, σ_r > 0, α, t ∈ (0, 1) (t ≤ 0.5), and with ``gated`` the step g ∈ (0, 1).
+
+    Arguments:
+        model: the denoiser.
+        z: the global features, (*batch, Z) (:func:`roughness_features`).
+
+    Returns:
+        ``{"lam", "sigma_s", "sigma_r", "guidance", "tangential"[, "step"]}``, each (*batch, S)."""
+    s, p = model.config.stages, model.config.stage_parameters
+    out = _network_outputs(model, z)[..., :s * p]
+    theta = lift(model.stage_base, z.ndim + 1) + out.reshape(*z.shape[:-1], s, p)
+    params = {"lam": 0.9 * jnp.minimum(jnp.exp(theta[..., 0]), 1.0),
+              "sigma_s": jnp.exp(jnp.clip(theta[..., 1], -2.5, 2.5)),
+              "sigma_r": jnp.exp(jnp.clip(theta[..., 2], -4.0, 1.5)),
+              "guidance": jax.nn.sigmoid(theta[..., 3]),
+              "tangential": 0.5 * jax.nn.sigmoid(theta[..., 4])}
+    if model.config.gated:
+        params["step"] = jax.nn.sigmoid(theta[..., 5])
+    return params
+
+
+def repair_parameters(model: LearnedDenoiser, z: Float[Array, "*batch Z"]) -> dict[str, Float[Array, "*batch"]]:
+    """The repair stage's gate g_r = σ(r̄₀ + G(z)₀) ∈ (0, 1) and thin-plate weight
+    α = exp(r̄₁ + G(z)₁) ∈ [0.01, 10].
+
+    Arguments:
+        model: a denoiser with ``repair_rounds`` > 0.
+        z: the global features, (*batch, Z).
+
+    Returns:
+        ``{"gate", "alpha"}``, each (*batch,)."""
+    if model.repair_base is None:
+        raise ValueError("this model has no repair stage (repair_rounds = 0)")
+    cfg = model.config
+    r = lift(model.repair_base, z.ndim) + _network_outputs(model, z)[..., cfg.stages * cfg.stage_parameters:]
+    return {"gate": jax.nn.sigmoid(r[..., 0]), "alpha": jnp.exp(jnp.clip(r[..., 1], -4.6, 2.3))}
 
 
 def _face_factor(model: LearnedDenoiser, mesh: Mesh, x, z) -> Float[Array, "*batch F"]:
@@ -188,6 +264,7 @@ def _face_factor(model: LearnedDenoiser, mesh: Mesh, x, z) -> Float[Array, "*bat
 def _stage(model: LearnedDenoiser, mesh: Mesh, graph: FaceGraph, x, z, theta: dict, s: int):
     """One stage (module docstring, steps 1–4) with the parameters of stage ``s``."""
     cfg = model.config
+    x0 = x
     lam = theta["lam"][..., s, None, None]
     mu = -lam / (1 - 0.1 * lam)
     x = iterate(lambda y: taubin_pair(y, lambda v: umbrella(mesh, v), lam, mu), x, cfg.smooth_iterations)
@@ -202,7 +279,17 @@ def _stage(model: LearnedDenoiser, mesh: Mesh, graph: FaceGraph, x, z, theta: di
         return joint_bilateral_normals(graph, n, g, w, sigma_r, per_face=True)
 
     n = iterate(normal_pass, face_normals(geo), cfg.normal_iterations)
-    return vertex_update(mesh, x, n, cfg.vertex_iterations, tangential=theta["tangential"][..., s])
+    out = vertex_update(mesh, x, n, cfg.vertex_iterations, tangential=theta["tangential"][..., s])
+    if not cfg.gated:
+        return out
+    return x0 + theta["step"][..., s, None, None] * (out - x0)
+
+
+def _repair(model: LearnedDenoiser, mesh: Mesh, x, z):
+    """The gated impulse-repair stage y + g_r (IR_α(y) − y) (module docstring)."""
+    r = repair_parameters(model, z)
+    fixed = impulse_repair(mesh.with_vertices(x), r["alpha"], REPAIR_ALPHA0, model.config.repair_rounds).vertices
+    return x + r["gate"][..., None, None] * (fixed - x)
 
 
 def learned_denoising(mesh: Mesh, model: LearnedDenoiser, graph: FaceGraph | None = None) -> Mesh:
@@ -218,7 +305,9 @@ def learned_denoising(mesh: Mesh, model: LearnedDenoiser, graph: FaceGraph | Non
         The denoised mesh (same connectivity)."""
     graph = face_graph(mesh) if graph is None else graph
     x = mesh.vertices
-    z = roughness_features(mesh, x)
+    z = roughness_features(mesh, x, model.config.tail_features)
+    if model.config.repair_rounds:
+        x = _repair(model, mesh, x, z)
     theta = stage_parameters(model, z)
     for s in range(model.config.stages):
         x = _stage(model, mesh, graph, x, z, theta, s)

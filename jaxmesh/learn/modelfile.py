@@ -6,8 +6,9 @@ A file is one JSON header line (``{"format": "jaxmesh-learned", "version": 1, "c
 the model as a NumPy ``.npy`` record, in ``jax.tree_util`` order.  The reader checks the
 header's config (:meth:`~jaxmesh.learn.ModelConfig.check`) before building anything, and
 every record's shape and dtype against the template the config implies, so a truncated,
-edited or foreign file is a clear ``ValueError``, never a mis-shaped model.  Files are
-written atomically (a temporary file renamed over the target).
+edited or foreign file is a clear ``ValueError``, never a mis-shaped model.  A config
+without the keys of the optional parts (``repair_rounds``, ``gated``, ``tail_features``:
+files written before they existed) is the plain stack.  Files are written atomically (a temporary file renamed over the target).
 """
 
 from __future__ import annotations
@@ -32,6 +33,8 @@ __all__ = ["save_model", "load_model", "default_model", "DEFAULT_MODEL", "file_s
 #: the model shipped with jaxmesh (trained by ``experiments/learn/train_default.py``)
 DEFAULT_MODEL = Path(__file__).resolve().parent.parent / "data" / "learned.jxl"
 _FORMAT, _VERSION = "jaxmesh-learned", 1
+#: the optional parts a config without these keys lacks (files written before they existed)
+_PLAIN = {"repair_rounds": 0, "gated": False, "tail_features": False}
 _HEADER_LIMIT = 1 << 20
 
 
@@ -105,7 +108,7 @@ def load_model(path: str | os.PathLike, extra: Any = None) -> LearnedDenoiser | 
     with open(path, "rb") as f:
         header = _header(f, path)
         try:
-            config = ModelConfig(**header["config"]).check()
+            config = ModelConfig(**{**_PLAIN, **header["config"]}).check()
         except TypeError as e:
             raise ValueError(f"{path}: the model file's config is not a jaxmesh model config ({e})") from None
         except ValueError as e:
