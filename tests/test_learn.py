@@ -134,23 +134,56 @@ def test_model_file_round_trip_and_checkpoint(tmp_path):
     assert int(s2[0].count) == 0 and jax.tree_util.tree_structure(s2) == jax.tree_util.tree_structure(state)
 
 
-def test_gates_shut_leave_the_mesh_and_open_give_the_repair(sphere):
-    """With every gate shut the stack returns its input; with the repair gate open and the
-    stages shut it is the registry's impulse repair with the model's α, exactly."""
+def _taubin_loop(faces: np.ndarray, x: np.ndarray, lams, pairs: int) -> np.ndarray:
+    """Taubin's pairs x ← x + λ K x, x ← x + μ K x (μ = −λ / (1 − 0.1 λ)), K x the mean of
+    the neighbours minus x, as a plain loop over the edges."""
+    nbrs = [set() for _ in range(len(x))]
+    for a, b, c in faces:
+        nbrs[a] |= {b, c}
+        nbrs[b] |= {a, c}
+        nbrs[c] |= {a, b}
+    umb = lambda y: np.array([y[sorted(n)].mean(0) - y[i] for i, n in enumerate(nbrs)])  # noqa: E731
+    for lam in lams:
+        mu = -lam / (1 - 0.1 * lam)
+        for _ in range(pairs):
+            x = x + lam * umb(x)
+            x = x + mu * umb(x)
+    return x
+
+
+def test_gates_shut_give_taubin_alone_and_the_repair_gate_open_gives_the_repair(sphere):
+    """With the stages' steps shut the stack is Taubin's pairs alone (a plain loop); with λ
+    and every gate shut it returns its input; with the repair gate open and the rest shut it
+    is the registry's impulse repair with the model's α, exactly."""
     model = _randomised(init_model(FULL, 6))
     graph = face_graph(sphere)
     spikes = jaxmesh.add_noise(sphere, 0.5, 4, along_normals=True, fraction=0.3)
-    shut = eqx.tree_at(lambda m: (m.stage_base, m.repair_base), model,
-                       (model.stage_base.at[:, 5].set(-60.0), model.repair_base.at[0].set(-60.0)))
+    z = roughness_features(spikes, spikes.vertices, True)
+    steps_shut = eqx.tree_at(lambda m: (m.stage_base, m.repair_base), model,
+                             (model.stage_base.at[:, 5].set(-60.0), model.repair_base.at[0].set(-60.0)))
+    lams = np.asarray(stage_parameters(steps_shut, z)["lam"])
+    assert lams.min() > 1e-3
+    want = _taubin_loop(np.asarray(sphere.faces), np.asarray(spikes.vertices), lams, FULL.smooth_iterations)
+    np.testing.assert_allclose(learned_denoising(spikes, steps_shut, graph).vertices, want, atol=1e-12)
+    shut = eqx.tree_at(lambda m: m.stage_base, steps_shut, steps_shut.stage_base.at[:, 0].set(-60.0))
     np.testing.assert_allclose(learned_denoising(spikes, shut, graph).vertices, spikes.vertices, atol=1e-12)
     opened = eqx.tree_at(lambda m: m.repair_base, shut, shut.repair_base.at[0].set(60.0))
-    z = roughness_features(spikes, spikes.vertices, True)
     alpha = repair_parameters(opened, z)["alpha"]
     want = impulse_repair(spikes, alpha, REPAIR_ALPHA0, FULL.repair_rounds).vertices
     np.testing.assert_allclose(learned_denoising(spikes, opened, graph).vertices, want, atol=1e-12)
     assert float(jnp.max(jnp.abs(want - spikes.vertices))) > 0.05, "the repair moves the spikes"
     with pytest.raises(ValueError, match="no repair stage"):
         repair_parameters(init_model(SMALL), z)
+
+
+def test_the_log_objective_is_the_log_of_the_loss(sphere, noisy):
+    model = _randomised(init_model(SMALL, 9))
+    graph = face_graph(sphere)
+    plain = training_loss(model, sphere, noisy.vertices, graph, 1.0)
+    np.testing.assert_allclose(training_loss(model, sphere, noisy.vertices, graph, 1.0, "log"), np.log(plain),
+                               rtol=1e-12)
+    with pytest.raises(ValueError, match="objective must be one of"):
+        TrainConfig(objective="l2").check()
 
 
 def test_a_file_without_the_optional_parts_loads_as_the_plain_stack(tmp_path):

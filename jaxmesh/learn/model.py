@@ -15,9 +15,10 @@ positions x:
    σ_r,f = σ_{r,s} · ρ_f per face;
 4. ``vertex_iterations`` steps of the shared vertex update with tangential relaxation t_s.
 
-With ``gated``, the stage moves the positions only by a learned step g_s ∈ (0, 1):
-x ← x + g_s (x_stage − x), so the stack can do less than full stages where the noise is
-light.  With ``repair_rounds`` R > 0 an impulse-repair stage runs first,
+With ``gated``, steps 2–4 move the smoothed positions x_T of step 1 only by a learned
+step g_s ∈ (0, 1): x ← x_T + g_s (x_stage − x_T), so where feature-preserving filtering
+does not pay (smooth scans under light noise) the stack can fall back to Taubin smoothing
+alone.  With ``repair_rounds`` R > 0 an impulse-repair stage runs first,
 y ← y + g_r (IR_α(y) − y), IR_α the registry's :func:`~jaxmesh.denoise.impulse_repair`
 (R read-and-fit rounds with a learned thin-plate weight α), g_r ∈ (0, 1) a learned gate:
 the robust refit impulsive noise needs, used as much as the mesh calls for.
@@ -66,7 +67,7 @@ STAGE_PARAMETERS = ("log_lam", "log_sigma_s", "log_sigma_r", "logit_guidance", "
 #: the repair stage's parameters, in the order of :attr:`LearnedDenoiser.repair_base`
 REPAIR_PARAMETERS = ("logit_repair", "log_alpha")
 #: θ̄_s at initialisation: λ = 0.05, σ_s = 1, σ_r = 0.35, α = 0.5, t = 0.1 (the registry's
-#: defaults), and with ``gated`` g_s = 0.95 (nearly the full stage)
+#: defaults), and with ``gated`` g_s = 0.95 (nearly the full normal filtering)
 _INITIAL = (-3.0, 0.0, -1.05, 0.0, -2.2, 3.0)
 #: r̄ at initialisation: g_r = 0.5, α = 0.3 (the registry's default)
 _REPAIR_INITIAL = (0.0, -1.2)
@@ -264,7 +265,6 @@ def _face_factor(model: LearnedDenoiser, mesh: Mesh, x, z) -> Float[Array, "*bat
 def _stage(model: LearnedDenoiser, mesh: Mesh, graph: FaceGraph, x, z, theta: dict, s: int):
     """One stage (module docstring, steps 1–4) with the parameters of stage ``s``."""
     cfg = model.config
-    x0 = x
     lam = theta["lam"][..., s, None, None]
     mu = -lam / (1 - 0.1 * lam)
     x = iterate(lambda y: taubin_pair(y, lambda v: umbrella(mesh, v), lam, mu), x, cfg.smooth_iterations)
@@ -282,7 +282,7 @@ def _stage(model: LearnedDenoiser, mesh: Mesh, graph: FaceGraph, x, z, theta: di
     out = vertex_update(mesh, x, n, cfg.vertex_iterations, tangential=theta["tangential"][..., s])
     if not cfg.gated:
         return out
-    return x0 + theta["step"][..., s, None, None] * (out - x0)
+    return x + theta["step"][..., s, None, None] * (out - x)
 
 
 def _repair(model: LearnedDenoiser, mesh: Mesh, x, z):

@@ -5,7 +5,9 @@
     L(θ) = mean-normal-angle(u, x) [degrees] + w · RMS(x − u) / ℓ̄(u),
 
 (``position_weight`` = w), averaged over a batch of different meshes (one gradient per
-mesh, summed: each mesh compiles its own program once).  Adam with the gradient's
+mesh, summed: each mesh compiles its own program once).  With ``objective="log"`` each
+example's loss is log L(θ): a relative error, so a light-noise draw whose error is 2°
+weighs as much as a heavy one at 10° (the evaluation's figure is a ratio per cell).  Adam with the gradient's
 global norm clipped to 1; the step size decays from ``learning_rate`` to 5% of it on a
 cosine over the run (``schedule="cosine"``) or stays constant.
 
@@ -49,10 +51,12 @@ from ..noise import add_noise
 from .model import LearnedDenoiser, ModelConfig, init_model, learned_denoising
 from .modelfile import load_model, save_model
 
-__all__ = ["NoiseRange", "TrainConfig", "Example", "example", "draw_noise", "validation_draws", "training_loss",
+__all__ = ["NoiseRange", "TrainConfig", "OBJECTIVES", "Example", "example", "draw_noise", "validation_draws", "training_loss",
            "TrainResult", "train"]
 
 NOISE_KINDS = ("isotropic", "normal", "impulsive")
+#: the training objectives: L(θ), or log L(θ) (module docstring)
+OBJECTIVES = ("angle", "log")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -97,6 +101,7 @@ class TrainConfig:
     position_weight: float = 1.0
     seed: int = 0
     schedule: str = "cosine"
+    objective: str = "angle"
     keep_best: bool = True
     validate_every: int = 25
     checkpoint_every: int = 25
@@ -115,6 +120,8 @@ class TrainConfig:
             raise ValueError(f"position_weight must be >= 0, got {self.position_weight}")
         if self.schedule not in ("cosine", "constant"):
             raise ValueError(f"schedule must be 'cosine' or 'constant', got {self.schedule!r}")
+        if self.objective not in OBJECTIVES:
+            raise ValueError(f"objective must be one of {OBJECTIVES}, got {self.objective!r}")
         self.noise.check()
         self.model.check()
         return self
@@ -192,8 +199,8 @@ def validation_draws(ex: Example, seed: int) -> list[tuple[str, Mesh]]:
 
 
 def training_loss(model: LearnedDenoiser, clean: Mesh, noisy: Float[Array, "V 3"], graph: FaceGraph,
-                  position_weight: float) -> jax.Array:
-    """L(θ) for one mesh (module docstring).
+                  position_weight: float, objective: str = "angle") -> jax.Array:
+    """L(θ), or log L(θ) with ``objective="log"``, for one mesh (module docstring).
 
     Arguments:
         model: the denoiser.
@@ -201,18 +208,20 @@ def training_loss(model: LearnedDenoiser, clean: Mesh, noisy: Float[Array, "V 3"
         noisy: the noisy positions, (V, 3).
         graph: the clean mesh's face graph.
         position_weight: w.
+        objective: ``"angle"`` or ``"log"``.
 
     Returns:
         The scalar loss."""
     out = learned_denoising(clean.with_vertices(noisy), model, graph).vertices
     angle = mean_normal_angle_error(clean, out)
-    return angle + position_weight * rms_vertex_error(clean, out) / mean_edge_length(clean)
+    loss = angle + position_weight * rms_vertex_error(clean, out) / mean_edge_length(clean)
+    return jnp.log(loss) if objective == "log" else loss
 
 
 
 @eqx.filter_jit
-def _loss_and_grad(model, clean, noisy, graph, position_weight):
-    return eqx.filter_value_and_grad(training_loss)(model, clean, noisy, graph, position_weight)
+def _loss_and_grad(model, clean, noisy, graph, position_weight, objective):
+    return eqx.filter_value_and_grad(training_loss)(model, clean, noisy, graph, position_weight, objective)
 
 
 @eqx.filter_jit
@@ -321,7 +330,7 @@ def _step(model, opt_state, opt, examples, config: TrainConfig, step: int):
     for i in sorted(int(p) for p in picks):
         ex = examples[i]
         noisy = ex.noisy if ex.noisy is not None else draw_noise(ex.clean, rng, config.noise)[0]
-        loss, g = _loss_and_grad(model, ex.clean, noisy.vertices, ex.graph, config.position_weight)
+        loss, g = _loss_and_grad(model, ex.clean, noisy.vertices, ex.graph, config.position_weight, config.objective)
         total += float(loss)
         grads = g if grads is None else jax.tree_util.tree_map(jnp.add, grads, g)
     grads = jax.tree_util.tree_map(lambda a: a / len(picks), grads)
