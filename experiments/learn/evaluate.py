@@ -138,6 +138,8 @@ def main() -> None:
     ap.add_argument("--model", default=None, help="model file (default: the shipped one)")
     ap.add_argument("--skip-auto", action="store_true", help="the learned model only (no new blind runs)")
     ap.add_argument("--blind-only", action="store_true", help="fill blind.json alone (no model needed)")
+    ap.add_argument("--tag", default=None,
+                    help="write evaluation-TAG.{json,md} (another model's figures) instead of evaluation.*")
     args = ap.parse_args()
     RESULTS.mkdir(parents=True, exist_ok=True)
     learned = None if args.blind_only else Learned(default_model(args.model))
@@ -164,16 +166,20 @@ def main() -> None:
         return
     data["timing"] = timing(learned, bunny)
     print(json.dumps(data["timing"]), flush=True)
-    (RESULTS / "evaluation.json").write_text(json.dumps(data, indent=1) + "\n")
-    (RESULTS / "evaluation.md").write_text(report(data))
-    print(report(data))
+    stem = "evaluation" if args.tag is None else f"evaluation-{args.tag}"
+    (RESULTS / f"{stem}.json").write_text(json.dumps(data, indent=1) + "\n")
+    (RESULTS / f"{stem}.md").write_text(report(data, args))
+    print(report(data, args))
 
 
-def report(data: dict) -> str:
+def report(data: dict, args=None) -> str:
     oracle = oracle_table()
-    lines = ["# The learned denoiser on unseen meshes", "",
-             "Regenerate: `.venv/bin/python experiments/learn/evaluate.py` (needs ../shared/meshes; the model: "
-             "`experiments/learn/train_default.py`).", "",
+    tagged = args is not None and args.tag is not None
+    how = (f"evaluate.py --model {args.model} --tag {args.tag}` (the model: `train_default.py` with the "
+           f"settings in its record)" if tagged else "evaluate.py` (needs ../shared/meshes; the model: "
+           "`experiments/learn/train_default.py`)")
+    lines = ["# The learned denoiser on unseen meshes" + (f": {args.tag}" if tagged else ""), "",
+             f"Regenerate: `.venv/bin/python experiments/learn/{how}.", "",
              "Mean face-normal angle error in degrees; σ in mean edge lengths ℓ̄; blind auto = `choose_denoiser` "
              "(the default of `jaxmesh denoise`); oracle = the best oracle-tuned method of "
              "`experiments/results/denoise/feature_table.json` (seed 0 only; '–' where it has no cell).", "",

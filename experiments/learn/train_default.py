@@ -33,8 +33,8 @@ jax.config.update("jax_enable_x64", True)
 import jaxmesh  # noqa: E402
 from jaxmesh.cli.train import progress_bar, write_curve  # noqa: E402
 from jaxmesh.hashing.attacks import simplify  # noqa: E402
-from jaxmesh.learn import (DEFAULT_MODEL, NoiseRange, TrainConfig, example, file_sha256, save_model,  # noqa: E402
-                           train)
+from jaxmesh.learn import (DEFAULT_MODEL, ModelConfig, NoiseRange, TrainConfig, example, file_sha256,  # noqa: E402
+                           save_model, train)
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -49,6 +49,9 @@ DECIMATED_VERTICES = 8000
 VALIDATION = ("fertility", "eight")
 EVALUATION = ("fandisk", "spot", "camelhead", "bunny")
 NOISE = NoiseRange(holdout=(0.35, 0.45))
+#: the model shapes: ``plain`` (the shipped model) and ``full`` (an impulse-repair stage of
+#: 5 rounds, gated normal filtering, tail features), and the objectives (TrainConfig.objective)
+SHAPES_OF_MODEL = {"plain": ModelConfig(), "full": ModelConfig(repair_rounds=5, gated=True, tail_features=True)}
 
 
 def training_meshes() -> list[tuple[str, jaxmesh.Mesh]]:
@@ -63,6 +66,20 @@ class _Stop(Exception):
     pass
 
 
+#: settings added after a record may have been written, at the values that mean "not used"
+ADDED_SETTINGS = (", objective='angle'", ", repair_rounds=0, gated=False, tail_features=False")
+
+
+def same_settings(config: TrainConfig, recorded: str) -> bool:
+    """Whether ``config`` is the recorded settings; a setting the record predates counts as
+    the same when ``config`` has it at its "not used" value (ADDED_SETTINGS)."""
+    now = repr(config)
+    for added in ADDED_SETTINGS:
+        if added.split("=")[0] not in recorded:
+            now = now.replace(added, "")
+    return now == recorded
+
+
 def verify(k: int, output: Path) -> None:
     """Rerun the shipped model's training (same settings and seed) up to step ``k`` and
     compare its validation figure with the one recorded at that step."""
@@ -72,7 +89,7 @@ def verify(k: int, output: Path) -> None:
         raise SystemExit(f"the record has no validation at step {k} (it has {[r['step'] for r in record['history']]})")
     config = TrainConfig(steps=int(record["settings"].split("steps=")[1].split(",")[0]), seed=record["seed"],
                          noise=NOISE)
-    if repr(config) != record["settings"]:
+    if not same_settings(config, record["settings"]):
         raise SystemExit("the recorded settings are not this script's: rerun the training instead")
     train_set = [example(name, mesh) for name, mesh in training_meshes()]
     validation = [example(name, jaxmesh.normalize(load(name))) for name in VALIDATION]
@@ -98,7 +115,13 @@ def main() -> None:
     ap.add_argument("--steps", type=int, default=TrainConfig.steps)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--output", type=Path, default=DEFAULT_MODEL)
+    ap.add_argument("--curve", type=Path, default=ROOT / "docs" / "images" / "learn-validation.png",
+                    help="where to draw the validation curve")
     ap.add_argument("--force", action="store_true", help="replace the output model")
+    ap.add_argument("--shape", choices=sorted(SHAPES_OF_MODEL), default="plain",
+                    help="the model's shape (default plain, the shipped model's)")
+    ap.add_argument("--objective", choices=("angle", "log"), default="angle",
+                    help="the training objective (default angle, the shipped model's)")
     ap.add_argument("--verify", type=int, metavar="K",
                     help="rerun the recorded training up to its K-th step (a multiple of 25) and compare the "
                          "validation there with the record (writes nothing)")
@@ -108,7 +131,8 @@ def main() -> None:
     if args.output.exists() and not args.force:
         raise SystemExit(f"{args.output} exists: --force to replace it")
     RESULTS.mkdir(parents=True, exist_ok=True)
-    config = TrainConfig(steps=args.steps, seed=args.seed, noise=NOISE)
+    config = TrainConfig(steps=args.steps, seed=args.seed, noise=NOISE, model=SHAPES_OF_MODEL[args.shape],
+                         objective=args.objective)
     start = time.perf_counter()
     train_set = [example(name, mesh) for name, mesh in training_meshes()]
     validation = [example(name, jaxmesh.normalize(load(name))) for name in VALIDATION]
@@ -124,7 +148,7 @@ def main() -> None:
     save_model(args.output, result.model, meta, overwrite=args.force)
     record = {**meta, "model_file": args.output.name, "sha256": file_sha256(args.output)}
     args.output.with_suffix(".json").write_text(json.dumps(record, indent=1) + "\n")
-    write_curve(result.history, ROOT / "docs" / "images" / "learn-validation.png", overwrite=True)
+    write_curve(result.history, args.curve, overwrite=True)
     checkpoint.unlink(missing_ok=True)
     best = next(r for r in result.history if r["step"] == result.best_step)
     print(f"trained in {seconds / 60:.1f} min: validation {best['validation']:.3f} deg (step {result.best_step}); "
