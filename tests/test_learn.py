@@ -12,8 +12,7 @@ import pytest
 import trimesh
 
 import jaxmesh
-from jaxmesh.denoise import METHODS, denoise, face_graph
-from jaxmesh.denoise import impulse_repair
+from jaxmesh.denoise import METHODS, denoise, face_graph, impulse_repair
 from jaxmesh.learn import (DEFAULT_MODEL, REPAIR_ALPHA0, LearnedDenoiser, ModelConfig, NoiseRange, TrainConfig,
                            default_model, draw_noise, example, file_sha256, init_model, learned_denoising,
                            load_model, repair_parameters, roughness_features, save_model, stage_parameters, train,

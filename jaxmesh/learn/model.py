@@ -27,9 +27,9 @@ The per-stage parameters θ_s = (log λ_s, log σ_s, log σ_r, logit α_s, logit
 g_s]) are θ̄_s + G(z), G a small MLP of the mesh's global roughness features z (three
 medians, plus with ``tail_features`` two tail ratios; :func:`roughness_features`), so the
 stack adapts to the noise level and the noise model without a search; the repair stage's
-(logit g_r, log α) are r̄ + G(z) likewise.  The per-face factor ρ_f = exp(tanh(R(u_f))) comes from a second
-MLP R of local features u_f (the face's normal deviation from its ring, relative to the
-mesh's median deviation, and z).
+(logit g_r, log α) are r̄ + G(z) likewise.  The per-face factor ρ_f = exp(tanh(R(u_f)))
+comes from a second MLP R of local features u_f (the face's normal deviation from its
+ring, relative to the mesh's median deviation, and z).
 
 Every step is a pure JAX function of the positions and of the networks' weights, so the
 denoiser is jittable, batched over positions (vertices (*batch, V, 3)), and

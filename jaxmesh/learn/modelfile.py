@@ -8,7 +8,8 @@ header's config (:meth:`~jaxmesh.learn.ModelConfig.check`) before building anyth
 every record's shape and dtype against the template the config implies, so a truncated,
 edited or foreign file is a clear ``ValueError``, never a mis-shaped model.  A config
 without the keys of the optional parts (``repair_rounds``, ``gated``, ``tail_features``:
-files written before they existed) is the plain stack.  Files are written atomically (a temporary file renamed over the target).
+files written before they existed) is the plain stack.  Files are written atomically (a
+temporary file renamed over the target).
 """
 
 from __future__ import annotations

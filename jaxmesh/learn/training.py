@@ -7,9 +7,9 @@
 (``position_weight`` = w), averaged over a batch of different meshes (one gradient per
 mesh, summed: each mesh compiles its own program once).  With ``objective="log"`` each
 example's loss is log L(θ): a relative error, so a light-noise draw whose error is 2°
-weighs as much as a heavy one at 10° (the evaluation's figure is a ratio per cell).  Adam with the gradient's
-global norm clipped to 1; the step size decays from ``learning_rate`` to 5% of it on a
-cosine over the run (``schedule="cosine"``) or stays constant.
+weighs as much as a heavy one at 10°.  Adam with the gradient's global norm clipped to 1;
+the step size decays from ``learning_rate`` to 5% of it on a cosine over the run
+(``schedule="cosine"``) or stays constant.
 
 **Noise.**  With no noisy copy given, each step draws one per mesh from :class:`NoiseRange`:
 the noise model (isotropic Gaussian, Gaussian along the normals, impulsive) and σ
@@ -51,8 +51,8 @@ from ..noise import add_noise
 from .model import LearnedDenoiser, ModelConfig, init_model, learned_denoising
 from .modelfile import load_model, save_model
 
-__all__ = ["NoiseRange", "TrainConfig", "OBJECTIVES", "Example", "example", "draw_noise", "validation_draws", "training_loss",
-           "TrainResult", "train"]
+__all__ = ["NoiseRange", "TrainConfig", "OBJECTIVES", "Example", "example", "draw_noise", "validation_draws",
+           "training_loss", "TrainResult", "train"]
 
 NOISE_KINDS = ("isotropic", "normal", "impulsive")
 #: the training objectives: L(θ), or log L(θ) (module docstring)
