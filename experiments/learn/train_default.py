@@ -1,6 +1,7 @@
 """Train the learned denoiser shipped with jaxmesh (``jaxmesh/data/learned.jxl``).
 
     .venv/bin/python experiments/learn/train_default.py [--steps N] [--seed S] [--force]
+        [--shape plain|full] [--objective angle|log] [--output FILE] [--curve PNG]
     .venv/bin/python experiments/learn/train_default.py --verify 50   # rerun to step 50, compare
 
 Training meshes: the shared scans cow, maxplanck, shark, human, and armadillo and igea
