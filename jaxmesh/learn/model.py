@@ -195,8 +195,9 @@ def roughness_features(mesh: Mesh, x: Float[Array, "*batch V 3"], tails: bool = 
     ell = mean_edge_length(geo)[..., None]
     k = umbrella(mesh, x)
     m = vertex_normals(geo, "area")
-    along = jnp.abs(dot(k, m))
-    across = safe_norm(k - dot(k, m)[..., None] * m)
+    normal_part = dot(k, m)
+    along = jnp.abs(normal_part)
+    across = safe_norm(k - normal_part[..., None] * m)
     dev = _ring_deviation(mesh, x)
     feats = [_median(dev), _median(along / ell), _median(across / ell)]
     if tails:
