@@ -5,6 +5,7 @@ unless asked."""
 import shutil
 
 import numpy as np
+import pytest
 import trimesh
 
 import jaxmesh
@@ -13,6 +14,7 @@ from jaxmesh.learn import learned_denoising, load_model
 from conftest import write_pairs
 
 
+@pytest.mark.slow      # compiles the default model's training step (about 18 s on 2 cores)
 def test_train_on_pairs_then_denoise_with_the_model(capsys, tmp_path):
     write_pairs(tmp_path, 3)
     model = tmp_path / "m.jxl"
