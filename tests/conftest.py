@@ -9,6 +9,8 @@ import inspect
 import json
 import os
 import re
+import shutil
+import tempfile
 from pathlib import Path
 
 # The default run is mostly XLA compiles of small programs that then run once (in
@@ -48,6 +50,25 @@ jax.config.update("jax_numpy_dtype_promotion", "strict")
 # every broadcast between ranks explicitly (``_private.lift``).  The environment
 # variable carries the setting into the CLI subprocesses the tests start.
 jax.config.update("jax_numpy_rank_promotion", "raise")
+# One persistent compilation cache for the run, shared by the xdist workers: a program one
+# worker compiled, the other loads, and a module whose programs were released
+# (_release_compiled_programs) loads them back (the default run on 2 cores: 5 min 30 s
+# without it, 4 min 55 s to 5 min 15 s with it).  The controller makes the folder before the workers
+# start (they inherit the variable) and removes it at the end.  A size limit turns on
+# JAX's file lock, so a worker never reads an entry the other is still writing.
+if "JAXMESH_TEST_XLA_CACHE" not in os.environ:
+    os.environ["JAXMESH_TEST_XLA_CACHE"] = _OWN_XLA_CACHE = tempfile.mkdtemp(prefix="jaxmesh-test-xla-")
+else:
+    _OWN_XLA_CACHE = None
+jax.config.update("jax_compilation_cache_dir", os.environ["JAXMESH_TEST_XLA_CACHE"])
+jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.05)
+jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+jax.config.update("jax_compilation_cache_max_size", 2**32)
+
+
+def pytest_unconfigure(config):
+    if _OWN_XLA_CACHE is not None:
+        shutil.rmtree(_OWN_XLA_CACHE, ignore_errors=True)
 
 import jaxmesh  # noqa: E402
 from jaxmesh.compiler import release_compiled_programs  # noqa: E402

@@ -1,5 +1,5 @@
-"""jaxmesh.learn: the learned denoiser's gradients against finite differences, jit and
-vmap against eager loops, model files (round trip, corrupt files), training's
+"""jaxmesh.learn: the learned denoiser's gradients against finite differences, jit against
+eager, batches and vmap against a loop, model files (round trip, corrupt files), training's
 determinism and resume after a kill, and the registry method."""
 
 import json
