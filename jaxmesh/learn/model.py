@@ -263,27 +263,27 @@ def _face_factor(model: LearnedDenoiser, mesh: Mesh, x, z) -> Float[Array, "*bat
     return jnp.exp(jnp.tanh(net(u)[..., 0]))
 
 
-def _stage(model: LearnedDenoiser, mesh: Mesh, graph: FaceGraph, x, z, theta: dict, s: int):
-    """One stage (module docstring, steps 1–4) with the parameters of stage ``s``."""
+def _stage(model: LearnedDenoiser, mesh: Mesh, graph: FaceGraph, x, z, theta: dict):
+    """One stage (module docstring, steps 1–4) with one stage's parameters ``theta`` (each (*batch,))."""
     cfg = model.config
-    lam = theta["lam"][..., s, None, None]
+    lam = theta["lam"][..., None, None]
     mu = -lam / (1 - 0.1 * lam)
     x = iterate(lambda y: taubin_pair(y, lambda v: umbrella(mesh, v), lam, mu), x, cfg.smooth_iterations)
     geo = mesh.with_vertices(x)
-    w = spatial_weights(mesh, graph, x, theta["sigma_s"][..., s])
+    w = spatial_weights(mesh, graph, x, theta["sigma_s"])
     areas = face_areas(geo)
-    sigma_r = theta["sigma_r"][..., s, None] * _face_factor(model, mesh, x, z)
-    alpha = theta["guidance"][..., s, None, None]
+    sigma_r = theta["sigma_r"][..., None] * _face_factor(model, mesh, x, z)
+    alpha = theta["guidance"][..., None, None]
 
     def normal_pass(n):
         g = safe_normalize((1 - alpha) * n + alpha * guidance_normals(graph, n, areas))
         return joint_bilateral_normals(graph, n, g, w, sigma_r, per_face=True)
 
     n = iterate(normal_pass, face_normals(geo), cfg.normal_iterations)
-    out = vertex_update(mesh, x, n, cfg.vertex_iterations, tangential=theta["tangential"][..., s])
+    out = vertex_update(mesh, x, n, cfg.vertex_iterations, tangential=theta["tangential"])
     if not cfg.gated:
         return out
-    return x + theta["step"][..., s, None, None] * (out - x)
+    return x + theta["step"][..., None, None] * (out - x)
 
 
 def _repair(model: LearnedDenoiser, mesh: Mesh, x, z):
@@ -309,7 +309,7 @@ def learned_denoising(mesh: Mesh, model: LearnedDenoiser, graph: FaceGraph | Non
     z = roughness_features(mesh, x, model.config.tail_features)
     if model.config.repair_rounds:
         x = _repair(model, mesh, x, z)
-    theta = stage_parameters(model, z)
-    for s in range(model.config.stages):
-        x = _stage(model, mesh, graph, x, z, theta, s)
+    # The stages share one traced body (a scan over the stage axis): one compile, not S.
+    per_stage = jax.tree.map(lambda a: jnp.moveaxis(a, -1, 0), stage_parameters(model, z))
+    x, _ = jax.lax.scan(lambda y, theta: (_stage(model, mesh, graph, y, z, theta), None), x, per_stage)
     return mesh.with_vertices(x)
