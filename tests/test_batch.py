@@ -33,7 +33,9 @@ def three_meshes():
 # methods with a host-built face graph (the median and the feature-preserving filters) batch
 # over copies of one mesh (tests/test_denoise_methods.py), not over padded different meshes:
 # the graph of each mesh would have to be padded too (noted for the dataset-runner issue)
-@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if n == "impulse_repair" else n   # 9 s
+# impulse_repair (9 s) and the two slowest to compile (~3 s each) run with -m slow
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow)
+                                  if n in ("impulse_repair", "cauchy_diffusion", "geometric") else n
                                   for n in sorted(METHODS) if not METHODS[n].aux])
 def test_padded_batch_equals_single_calls(three_meshes, name):
     batch = pad_batch(three_meshes)
@@ -104,7 +106,8 @@ def test_pack_batch_is_the_disjoint_union_and_unpacks_exactly(three_meshes):
 PACKABLE = sorted(n for n, m in METHODS.items() if m.packable)
 
 
-@pytest.mark.parametrize("name", PACKABLE)
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if n == "bilateral" else n  # 4 s
+                                  for n in PACKABLE])
 def test_a_packable_method_on_the_union_gives_each_mesh_its_own_result(three_meshes, name):
     """``Method.packable`` is honest (``local``, or one ``unit`` scaled to 1 per mesh): each
     mesh of the union, in its own frame, gets what

@@ -96,7 +96,7 @@ def test_pack_is_refused_where_it_cannot_run(tmp_path):
 @pytest.mark.parametrize("method,params", [
     ("taubin", {"iterations": 7}),
     pytest.param("kernel", {"lam": 0.02, "iterations": 3}, marks=pytest.mark.slow),
-    ("bilateral_normal", {"normal_iterations": 2, "vertex_iterations": 3})])
+    pytest.param("bilateral_normal", {"normal_iterations": 2, "vertex_iterations": 3}, marks=pytest.mark.slow)])
 def test_outputs_equal_per_mesh_calls(tmp_path, method, params, monkeypatch):
     """Also with every compiled program dropped after each batch (as past the mapping limit)."""
     import jaxmesh.dataset.runner as runner
@@ -273,6 +273,7 @@ def test_lam_auto_tunes_each_mesh_as_tune_does(tmp_path):
 
 
 
+@pytest.mark.slow   # 5 s; the default run has the command's (tests/cli: --reference with --tune-on)
 def test_references_and_one_setting_tuned_on_a_subset(tmp_path):
     """``tune_on=2`` with references: λ tuned once (tune_shared, supervised) on the
     first two inputs and applied to all; every report line has the errors before and

@@ -22,6 +22,13 @@ SCALE_FREE = [n for n in NAMES if n != "kernel"]  # λ of the kernel flow is a s
 # has converged, so the elements agree with single runs to that accuracy, not to rounding
 SOLVER_ATOL = {"l0": 1e-6}
 HEAVY_ON_SPOT = ("l0",)   # 40 CG solves on the 2.9k-vertex spot: -m slow
+# the learned stack's jit/vmap and finite-difference checks run by default in tests/test_learn.py
+# (on small random models); here, on the shipped model, they run with -m slow
+LEARN_COVERED = [pytest.param(n, marks=pytest.mark.slow) if n == "learned" else n for n in NAMES]
+# jit/batch: these and the methods slowest to compile (2-5 s each) run with -m slow; each of
+# those keeps its gradient, degenerate-input and invariance checks in the default run
+JIT_CASES = [pytest.param(n, marks=pytest.mark.slow) if n in ("learned", "l0", "impulse_repair", "bilateral",
+                                                              "geometric") else n for n in NAMES]
 # central-difference steps where the default (1e-4) leaves a truncation error above the
 # tolerance: bilateral normal filtering's narrow range kernel is strongly curved
 # (error 9.2e-5 relative at 1e-4, 9.2e-7 at 1e-5, 9e-9 at 1e-6: O(eps²), the gradient is exact)
@@ -77,7 +84,7 @@ def test_denoises_spot_and_is_translation_and_scale_invariant(noisy_spot, name):
         assert_same_up_to_median_ties(name, f(1000.0 * noisy.vertices) / 1000.0, a)
 
 
-@pytest.mark.parametrize("name", NAMES)
+@pytest.mark.parametrize("name", JIT_CASES)
 def test_jit_equals_eager_and_batch_equals_loop(small_sphere, name):
     method = METHODS[name]
     eager = method(small_sphere).vertices
@@ -107,7 +114,7 @@ def _slow_if(heavy, name, *rest):
 
 
 @pytest.mark.parametrize("mode", ["fwd", pytest.param("rev", marks=pytest.mark.slow)])
-@pytest.mark.parametrize("name", NAMES)
+@pytest.mark.parametrize("name", LEARN_COVERED)
 def test_gradients_in_positions_and_parameters(small_sphere, name, mode):
     """Derivatives against finite differences, jointly in the positions and every
     continuous parameter: one compiled function per method, so one compile for the

@@ -228,6 +228,7 @@ def test_refusals():
     assert_refused(heat_distances, mesh, [0], boundary="robin", param="boundary", message="boundary must be one of")
 
 
+@pytest.mark.slow   # 7 s: two heat programs on spot in each precision
 def test_float32_distances_agree_with_float64_or_are_refused_naming_it():
     spot = jaxmesh.data.load_sample("spot", dtype=np.float64)
     strip = jaxmesh.Mesh.from_arrays(*grid_arrays(60, 2))      # u ~ e^-60 at its end: |∇u|² below float32's range

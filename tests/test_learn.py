@@ -74,7 +74,8 @@ def test_tail_features_read_impulsive_noise(sphere, noisy):
     assert np.all(zi[3:] > z5[3:] + 0.2), (zi, z5)
 
 
-@pytest.mark.parametrize("config", [SMALL, FULL], ids=["plain", "full"])
+@pytest.mark.parametrize("config", [pytest.param(SMALL, id="plain"),   # every optional part on: -m slow (10 s)
+                                    pytest.param(FULL, id="full", marks=pytest.mark.slow)])
 def test_gradient_in_positions_and_parameters_matches_finite_differences(sphere, noisy, config):
     model = _randomised(init_model(config, 2))
     graph = face_graph(sphere)
@@ -98,7 +99,8 @@ def test_gradient_in_positions_and_parameters_matches_finite_differences(sphere,
     assert any(float(jnp.abs(x).max()) > 0 for x in face_grad), "the face net is used"
 
 
-@pytest.mark.parametrize("config", [SMALL, FULL], ids=["plain", "full"])
+@pytest.mark.parametrize("config", [pytest.param(SMALL, id="plain"),   # every optional part on: -m slow (10 s)
+                                    pytest.param(FULL, id="full", marks=pytest.mark.slow)])
 def test_jit_equals_eager_and_vmap_equals_a_loop(sphere, config):
     model = _randomised(init_model(config, 3))
     graph = face_graph(sphere)
@@ -258,6 +260,7 @@ def test_example_refuses_a_noisy_copy_of_other_connectivity(sphere):
         example("ball", sphere, jaxmesh.Mesh.from_arrays(other.vertices, other.faces))
 
 
+@pytest.mark.slow   # 10 s: compiles the training step for three mesh sizes; the CLI's refusals run by default
 def test_training_lowers_the_loss_and_resumes_after_a_kill_exactly(sphere, tmp_path):
     """Four steps straight, and two steps killed then resumed from the checkpoint: the same
     weights and history (each step's data depend on (seed, step) only)."""
