@@ -10,6 +10,9 @@ correspondence (different connectivity, reordered vertices) and runs on the host
 
 from __future__ import annotations
 
+import functools
+
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
@@ -58,7 +61,13 @@ def visual_error(reference: Mesh, estimate) -> Float[Array, "*batch"]:
 
     Returns:
         One value per mesh, (*batch)."""
-    x = _positions(reference, estimate)
+    return _visual_error(reference, _positions(reference, estimate))
+
+
+# The metrics' bodies are jitted: an eager call compiles one program per shape instead
+# of one per primitive (under an outer jit they are inlined as usual).
+@jax.jit
+def _visual_error(reference: Mesh, x):
     v = lift(reference.vertices, x.ndim)
     diff = v - x
     gl = umbrella(reference, diff)  # GL is linear: GL(v) - GL(x) = -K(v - x)
@@ -120,7 +129,11 @@ def nonlinear_visual_error(
 
     Returns:
         One value per mesh, (*batch)."""
-    x = _positions(reference, estimate)
+    return _nonlinear_visual_error(reference, _positions(reference, estimate), c, variant)
+
+
+@functools.partial(jax.jit, static_argnames=("c", "variant"))
+def _nonlinear_visual_error(reference: Mesh, x, c: float, variant: str):
     v = lift(reference.vertices, x.ndim)
     diff = v - x
     a_ref = nonlinear_diffusion_operator(reference, v, c, variant)
@@ -139,7 +152,11 @@ def rms_vertex_error(reference: Mesh, estimate) -> Float[Array, "*batch"]:
 
     Returns:
         One value per mesh, (*batch)."""
-    x = _positions(reference, estimate)
+    return _rms_vertex_error(reference, _positions(reference, estimate))
+
+
+@jax.jit
+def _rms_vertex_error(reference: Mesh, x):
     diff = lift(reference.vertices, x.ndim) - x
     return jnp.sqrt(jnp.mean(jnp.sum(diff * diff, axis=-1), axis=-1))
 
@@ -155,7 +172,11 @@ def mean_normal_angle_error(reference: Mesh, estimate) -> Float[Array, "*batch"]
 
     Returns:
         One value per mesh, (*batch)."""
-    x = _positions(reference, estimate)
+    return _mean_normal_angle_error(reference, _positions(reference, estimate))
+
+
+@jax.jit
+def _mean_normal_angle_error(reference: Mesh, x):
     n_ref = lift(face_normals(reference), x.ndim)
     n_est = face_normals(reference.with_vertices(x))
     ang = jnp.arctan2(safe_norm(jnp.cross(n_ref, n_est)), jnp.sum(n_ref * n_est, axis=-1))

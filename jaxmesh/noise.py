@@ -10,6 +10,8 @@
 
 from __future__ import annotations
 
+import functools
+
 import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
@@ -57,19 +59,25 @@ def add_noise(mesh: Mesh, sigma: float | Float[Array, "..."], key, *, along_norm
         The mesh with noisy vertices (same topology)."""
     if isinstance(fraction, (int, float)) and not 0.0 <= fraction <= 1.0:
         raise ValueError(f"fraction must be in [0, 1], got {fraction!r}")
+    every = isinstance(fraction, (int, float)) and fraction == 1.0
+    return mesh.with_vertices(_noisy_vertices(mesh, sigma, _key(key), fraction, along_normals, relative, every))
+
+
+# Jitted: an eager call compiles one program per shape instead of one per primitive.
+@functools.partial(jax.jit, static_argnames=("along_normals", "relative", "every"))
+def _noisy_vertices(mesh: Mesh, sigma, k, fraction, along_normals: bool, relative: bool, every: bool):
     v = mesh.vertices
     scale = sigma * mean_edge_length(mesh) if relative else jnp.asarray(sigma, v.dtype)
     scale = jnp.asarray(scale, v.dtype)[..., None, None]
-    k = _key(key)
     if along_normals:
         n = vertex_normals(mesh, "area")
         eta = jax.random.normal(k, v.shape[:-1] + (1,), v.dtype) * n
     else:
         eta = jax.random.normal(k, v.shape, v.dtype)
-    if not (isinstance(fraction, (int, float)) and fraction == 1.0):
+    if not every:
         u = jax.random.uniform(jax.random.fold_in(k, IMPULSIVE_MASK_STREAM), v.shape[:-1] + (1,), v.dtype)
         eta = jnp.where(u < fraction, eta, jnp.zeros_like(eta))
-    return mesh.with_vertices(v + scale * eta)
+    return v + scale * eta
 
 
 def add_impulsive_noise(mesh: Mesh, sigma: float | Float[Array, "..."], key,
