@@ -2,12 +2,31 @@
 
 from __future__ import annotations
 
+import functools
+
 import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float, Int, Shaped
 
 #: a continuous denoiser parameter: a number, or a float array (one value per batch element; traced under jit)
 Scalar = Float[ArrayLike, "..."] | float | int
+
+
+def one_program(fun=None, *, static_argnames: tuple[str, ...] = ()):
+    """``fun`` with its body run as one jitted program: called eagerly, it compiles one
+    XLA program per argument shapes and static values instead of one per primitive (each
+    eager primitive is its own program, compiled per shape); under ``jit``, ``vmap`` or
+    ``grad`` it is traced in place, as any jitted function.  Usable as a decorator, with or
+    without ``static_argnames`` (the string options of a formula)."""
+    if fun is None:
+        return functools.partial(one_program, static_argnames=tuple(static_argnames))
+    jitted = jax.jit(fun, static_argnames=tuple(static_argnames))
+
+    @functools.wraps(fun)
+    def run(*args, **kwargs):
+        return jitted(*args, **kwargs)
+
+    return run
 
 
 def segment_sum_rows(
@@ -60,6 +79,7 @@ def safe_normalize(x: Float[Array, "*batch d"], axis: int = -1) -> Float[Array, 
     return jnp.where(n > 0, x / jnp.where(n > 0, n, 1), 0)
 
 
+@one_program(static_argnames=("empty",))
 def filled_mass(mass: Float[Array, "*batch V"], empty: float = 1.0) -> Float[Array, "*batch V"]:
     """The lumped mass of the vertices without area (isolated, or only on zero-area faces),
     the one rule of every mass matrix: m_i where m_i > 0, else the mean of the positive
@@ -135,3 +155,4 @@ def library_key(key, stream: int):
     own noise equal to the noise it estimates is no estimate."""
     k = jax.random.PRNGKey(key) if isinstance(key, int) else key
     return jax.random.fold_in(k, stream)
+

@@ -47,7 +47,7 @@ import numpy as np
 from jaxtyping import Array, Float, Int
 
 from ._exported import stored_jit
-from ._private import filled_mass, safe_norm, segment_sum_scalars
+from ._private import filled_mass, one_program, safe_norm, segment_sum_scalars
 from .geometry import edge_lengths, face_areas, face_corners, hat_gradients, mean_edge_length
 from .intrinsic import (IntrinsicTriangulation, cotangents_from_lengths, intrinsic_delaunay, layout_from_lengths,
                         replay_flips)
@@ -64,6 +64,7 @@ _face_areas = jax.jit(face_areas)
 BOUNDARY_CONDITIONS = ("average", "neumann", "dirichlet")
 
 
+@one_program
 def boundary_vertices(mesh: Mesh) -> jax.Array:
     """The vertices on a boundary edge (an edge of exactly one face).
 

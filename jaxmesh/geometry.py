@@ -13,7 +13,7 @@ from typing import Literal
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from ._private import lift, safe_norm, safe_normalize, segment_sum_rows, segment_sum_scalars
+from ._private import lift, one_program, safe_norm, safe_normalize, segment_sum_rows, segment_sum_scalars
 from .mesh import Mesh
 
 __all__ = [
@@ -35,6 +35,7 @@ __all__ = [
 ]
 
 
+@one_program
 def edge_vectors(mesh: Mesh) -> Float[Array, "*batch E 3"]:
     """e_ij = v_j - v_i for every undirected edge (i, j), i < j.
 
@@ -47,6 +48,7 @@ def edge_vectors(mesh: Mesh) -> Float[Array, "*batch E 3"]:
     return v[..., mesh.edges[:, 1], :] - v[..., mesh.edges[:, 0], :]
 
 
+@one_program
 def edge_lengths(mesh: Mesh) -> Float[Array, "*batch E"]:
     """||e_ij|| = ||v_i - v_j|| (thesis ch.1 eq.5 entries).
 
@@ -58,6 +60,7 @@ def edge_lengths(mesh: Mesh) -> Float[Array, "*batch E"]:
     return safe_norm(edge_vectors(mesh))
 
 
+@one_program
 def mean_edge_length(mesh: Mesh) -> Float[Array, "*batch"]:
     """l_bar = (1/|E|) sum_{e_ij in E} ||e_ij||   (thesis ch.1 eq.4).
 
@@ -73,6 +76,7 @@ def mean_edge_length(mesh: Mesh) -> Float[Array, "*batch"]:
     return jnp.sum(edge_lengths(mesh) * lift(real, mesh.vertices.ndim - 1), axis=-1) / jnp.maximum(jnp.sum(real), 1)
 
 
+@one_program(static_argnames=("segments",))
 def segment_mean_edge_length(mesh: Mesh, segment, segments: int) -> Float[Array, " S"]:
     """:func:`mean_edge_length` of each mesh of a disjoint union (:func:`jaxmesh.batch.pack_batch`):
     l_bar_k = (1/|E_k|) sum_{e_ij in E_k} ||e_ij||, E_k the edges of segment k, self-loops
@@ -91,6 +95,7 @@ def segment_mean_edge_length(mesh: Mesh, segment, segments: int) -> Float[Array,
     return total / jnp.maximum(segment_sum_scalars(real, of, segments), 1)
 
 
+@one_program
 def face_corners(mesh: Mesh) -> Float[Array, "*batch F 3 3"]:
     """Positions of the three corners of each face: [..., f, k, :] = v_{faces[f, k]}.
 
@@ -102,6 +107,7 @@ def face_corners(mesh: Mesh) -> Float[Array, "*batch F 3 3"]:
     return mesh.vertices[..., mesh.faces, :]
 
 
+@one_program(static_argnames=("method",))
 def face_areas(mesh: Mesh, method: Literal["cross", "heron"] = "cross") -> Float[Array, "*batch F"]:
     """Triangle areas.
 
@@ -144,6 +150,7 @@ def _face_cross(mesh: Mesh) -> Float[Array, "*batch F 3"]:
     return jnp.cross(p[..., 1, :] - p[..., 0, :], p[..., 2, :] - p[..., 0, :])
 
 
+@one_program
 def face_normals(mesh: Mesh) -> Float[Array, "*batch F 3"]:
     """Unit normal n(t) = (v_1 - v_0) x (v_2 - v_0) / ||.||, counter-clockwise
     orientation; zero for a zero-area face.
@@ -156,6 +163,7 @@ def face_normals(mesh: Mesh) -> Float[Array, "*batch F 3"]:
     return safe_normalize(_face_cross(mesh))
 
 
+@one_program
 def corner_angles(mesh: Mesh) -> Float[Array, "*batch F 3"]:
     """Interior angle at each corner, atan2(||e1 x e2||, e1 . e2) with e1, e2 the
     two edges leaving the corner (stable for tiny and obtuse angles).
@@ -171,6 +179,7 @@ def corner_angles(mesh: Mesh) -> Float[Array, "*batch F 3"]:
     return jnp.arctan2(safe_norm(jnp.cross(e1, e2)), jnp.sum(e1 * e2, axis=-1))
 
 
+@one_program
 def corner_cotangents(mesh: Mesh) -> Float[Array, "*batch F 3"]:
     """cot of the interior angle at each corner: (e1 . e2) / ||e1 x e2||.
 
@@ -252,6 +261,7 @@ def hat_gradients(p, xp=jnp):
     return 0.5 * twice, grad
 
 
+@one_program(static_argnames=("weighting",))
 def vertex_normals(
     mesh: Mesh, weighting: Literal["uniform", "angle", "area"] = "area"
 ) -> Float[Array, "*batch V 3"]:
@@ -284,6 +294,7 @@ def vertex_normals(
     return safe_normalize(summed)
 
 
+@one_program
 def vertex_areas(mesh: Mesh) -> Float[Array, "*batch V"]:
     """eta_i = sum of the areas of the triangles incident to v_i (thesis ch.4 eq.1).
 
@@ -298,6 +309,7 @@ def vertex_areas(mesh: Mesh) -> Float[Array, "*batch V"]:
     return segment_sum_scalars(flat, mesh.faces.reshape(-1), mesh.num_vertices)
 
 
+@one_program
 def vertex_voronoi_areas(mesh: Mesh) -> Float[Array, "*batch V"]:
     """Mixed Voronoi area of each vertex, the sum of :func:`voronoi_areas_of_corners`
     over its corners (the diagonal of libigl's Voronoi mass matrix).  Sums to the
@@ -313,6 +325,7 @@ def vertex_voronoi_areas(mesh: Mesh) -> Float[Array, "*batch V"]:
     return segment_sum_scalars(flat, mesh.faces.reshape(-1), mesh.num_vertices)
 
 
+@one_program
 def bounding_box_diagonal(mesh: Mesh) -> Float[Array, "*batch"]:
     """Length of the diagonal of the axis-aligned bounding box.
 

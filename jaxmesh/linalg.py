@@ -55,6 +55,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from jaxtyping import Array, Float, Int
 
+from ._private import one_program
 from .mesh import Mesh
 
 __all__ = ["sparse_solve", "sparse_matvec", "mesh_solve", "host_solve", "BACKENDS", "default_backend",
@@ -74,6 +75,7 @@ def default_backend() -> str:
     return "cholesky" if importlib.util.find_spec("cholespy") is not None else "lu"
 
 
+@one_program(static_argnames=("laplacian",))
 def sparse_matvec(
     edges: Int[Array, "E 2"], diagonal: Float[Array, " n"], edge_values: Float[Array, " E"],
     x: Float[Array, "n ..."], *, laplacian: bool = False,

@@ -14,7 +14,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from ._private import lift, safe_divide, segment_sum_rows, segment_sum_scalars
+from ._private import lift, one_program, safe_divide, segment_sum_rows, segment_sum_scalars
 from .geometry import corner_cotangents, vertex_areas
 from .mesh import Mesh
 
@@ -47,6 +47,7 @@ def degree(mesh: Mesh, dtype=None) -> Array:
     return mesh.degree if dtype is None else mesh.degree.astype(dtype)
 
 
+@one_program
 def neighbor_sum(mesh: Mesh, x: Float[Array, "*batch V d"]) -> Float[Array, "*batch V d"]:
     """sum_{j ~ i} x_j, i.e. (A x)_i with A the adjacency matrix.
 
@@ -59,6 +60,7 @@ def neighbor_sum(mesh: Mesh, x: Float[Array, "*batch V d"]) -> Float[Array, "*ba
     return segment_sum_rows(x[..., mesh.dst, :], mesh.src, mesh.num_vertices)
 
 
+@one_program
 def laplacian(mesh: Mesh, x: Float[Array, "*batch V d"]) -> Float[Array, "*batch V d"]:
     """(L x)_i = d_i x_i - sum_{j ~ i} x_j,   L = D - A   (thesis ch.1 eq.6).
     Symmetric positive semi-definite; constants are in its kernel.
@@ -78,6 +80,7 @@ def _inv_sqrt_degree(mesh: Mesh, dtype) -> Array:
     return safe_divide(jnp.ones_like(d), jnp.sqrt(d))
 
 
+@one_program
 def normalized_laplacian(mesh: Mesh, x: Float[Array, "*batch V d"]) -> Float[Array, "*batch V d"]:
     """(𝓛 x)_i = x_i - sum_{j ~ i} x_j / sqrt(d_i d_j),
     𝓛 = I - D^{-1/2} A D^{-1/2}   (thesis ch.1 eq.7).
@@ -95,6 +98,7 @@ def normalized_laplacian(mesh: Mesh, x: Float[Array, "*batch V d"]) -> Float[Arr
     return jnp.where(connected, x, 0) - s * neighbor_sum(mesh, s * x)
 
 
+@one_program
 def umbrella(mesh: Mesh, x: Float[Array, "*batch V d"]) -> Float[Array, "*batch V d"]:
     """(K x)_i = (1/d_i) sum_{j ~ i} x_j - x_i,   K = D^{-1} A - I   (thesis ch.3 eq.2).
 
@@ -111,6 +115,7 @@ def umbrella(mesh: Mesh, x: Float[Array, "*batch V d"]) -> Float[Array, "*batch 
     return jnp.where(d > 0, mean - x, 0)
 
 
+@one_program
 def vertex_gradient(mesh: Mesh, x: Float[Array, "*batch V d"]) -> Float[Array, "*batch H d"]:
     """grad x_i = { x_j / sqrt(d_j) - x_i / sqrt(d_i) : j ~ i }   (thesis ch.1 eq.9).
 
@@ -126,6 +131,7 @@ def vertex_gradient(mesh: Mesh, x: Float[Array, "*batch V d"]) -> Float[Array, "
     return y[..., mesh.dst, :] - y[..., mesh.src, :]
 
 
+@one_program
 def vertex_laplace(mesh: Mesh, x: Float[Array, "*batch V d"]) -> Float[Array, "*batch V d"]:
     """Δx_i = sum_{j ~ i} (1/sqrt(d_i)) (x_j / sqrt(d_j) - x_i / sqrt(d_i))
     (thesis ch.1 eq.10) = -(𝓛 x)_i.
@@ -144,6 +150,7 @@ def vertex_laplace(mesh: Mesh, x: Float[Array, "*batch V d"]) -> Float[Array, "*
     return s * segment_sum_rows(vertex_gradient(mesh, x), mesh.src, mesh.num_vertices)
 
 
+@one_program(static_argnames=("variant",))
 def gradient_magnitude(
     mesh: Mesh, x: Float[Array, "*batch V d"], variant: str = "paper"
 ) -> Float[Array, "*batch V"]:
@@ -172,6 +179,7 @@ def gradient_magnitude(
     return jnp.where(pos, jnp.sqrt(jnp.where(pos, sq, 1)), 0)
 
 
+@one_program
 def cotangent_weights(mesh: Mesh) -> Float[Array, "*batch E"]:
     """c_ij = cot α_ij + cot β_ij per undirected edge (``mesh.edges`` order), where
     α_ij, β_ij are the angles opposite edge (i, j) in its two faces.  A boundary
@@ -188,6 +196,7 @@ def cotangent_weights(mesh: Mesh) -> Float[Array, "*batch E"]:
     return segment_sum_scalars(flat, mesh.face_edges.reshape(-1), mesh.num_edges)
 
 
+@one_program
 def laplace_beltrami_weights(mesh: Mesh) -> Float[Array, "*batch H"]:
     """w_ij = 3 (cot α_ij + cot β_ij) / η_i per directed edge (thesis ch.4 eq.2),
     η_i the total area of the triangles around v_i.  Row-normalised, so
@@ -203,6 +212,7 @@ def laplace_beltrami_weights(mesh: Mesh) -> Float[Array, "*batch H"]:
     return safe_divide(3 * c, eta)
 
 
+@one_program
 def laplace_beltrami(mesh: Mesh, x: Float[Array, "*batch V d"]) -> Float[Array, "*batch V d"]:
     """Δ_m x_i = sum_{j ~ i} w_ij (x_j - x_i), w from :func:`laplace_beltrami_weights`
     (thesis ch.4 eq.1).  The thesis's matrix L = D - W (eq.2) acts as -Δ_m.
@@ -218,6 +228,7 @@ def laplace_beltrami(mesh: Mesh, x: Float[Array, "*batch V d"]) -> Float[Array, 
     return segment_sum_rows(w * diff, mesh.src, mesh.num_vertices)
 
 
+@one_program
 def cotangent_laplacian(mesh: Mesh, x: Float[Array, "*batch V d"]) -> Float[Array, "*batch V d"]:
     """(L_c x)_i = (1/2) sum_{j ~ i} (cot α_ij + cot β_ij)(x_j - x_i): the symmetric
     cotangent Laplacian (Pinkall–Polthier; Desbrun et al. 1999 without the mass

@@ -6,7 +6,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._private import lift
+from ._private import lift, one_program
 from .mesh import Mesh
 
 __all__ = ["normalize", "bounding_box_center", "unit_frame", "segment_unit_frame", "to_frame", "from_frame", "far_mask",
@@ -50,6 +50,7 @@ def _far(v, used, ratio: float, xp):
     return (used & (typical > 0) & (typical < xp.inf) & (d > ratio * typical))[..., 0]
 
 
+@one_program(static_argnames=("ratio",))
 def far_mask(mesh: Mesh, ratio: float = FAR_RATIO):
     """The used vertices far from the rest, (*batch, V) bool: ‖v_i − m‖ > ratio · d̃, with m
     the coordinate-wise median of the used vertices and d̃ the median of their distances to
@@ -67,6 +68,7 @@ def far_mask(mesh: Mesh, ratio: float = FAR_RATIO):
     return _far(v, lift((mesh.degree > 0)[:, None], v.ndim), ratio, jnp)
 
 
+@one_program
 def unit_frame(mesh: Mesh, far=None):
     """The library's one working frame: ``(centre (*batch, 3), scale (*batch,))``
     of the bounding box of the vertices that have neighbours and are not far from
@@ -88,6 +90,7 @@ def unit_frame(mesh: Mesh, far=None):
     return _box_frame(jnp.max(jnp.where(used, v, -jnp.inf), axis=-2), jnp.min(jnp.where(used, v, jnp.inf), axis=-2))
 
 
+@one_program(static_argnames=("count",))
 def segment_unit_frame(mesh: Mesh, far, segment, count: int):
     """:func:`unit_frame` of each mesh of a disjoint union (:func:`jaxmesh.batch.pack_batch`):
     ``(centre (count, 3), scale (count,))`` of the box of segment k's used vertices that are
@@ -120,6 +123,7 @@ def _box_frame(hi, lo):
     return 0.5 * (hi + lo), jnp.where(diag > 0, diag, jnp.ones_like(diag))
 
 
+@one_program
 def to_frame(mesh: Mesh, centre, scale) -> Mesh:
     """v' = (v - c) / s.
 
@@ -133,6 +137,7 @@ def to_frame(mesh: Mesh, centre, scale) -> Mesh:
     return mesh.with_vertices((mesh.vertices - centre[..., None, :]) / scale[..., None, None])
 
 
+@one_program
 def from_frame(mesh: Mesh, centre, scale) -> Mesh:
     """v = v' s + c (the inverse of :func:`to_frame`).
 
@@ -146,6 +151,7 @@ def from_frame(mesh: Mesh, centre, scale) -> Mesh:
     return mesh.with_vertices(mesh.vertices * scale[..., None, None] + centre[..., None, :])
 
 
+@one_program(static_argnames=("return_transform",))
 def normalize(mesh: Mesh, *, return_transform: bool = False):
     """Centre the bounding box at the origin and scale its diagonal to 1:
     v' = (v - c) / s with c, s from :func:`unit_frame` (the box of the vertices that

@@ -145,3 +145,34 @@ def test_a_far_vertex_is_refused_or_named_never_a_silent_wreck(spot):
         jaxmesh.compress.compress(far)
     with pytest.raises(FloatingPointError, match="diverged .*smaller step"):     # no far vertex: the usual hint
         denoise_in_unit_frame(_with_far(spot, 3, np.nan), "taubin")
+
+
+def test_denoise_in_unit_frame_compiled_agrees_with_the_eager_framed_run(spot):
+    """denoise_in_unit_frame runs framed_run as one compiled program (a registered method by
+    name, a caller's own Method by identity, the continuous parameters traced): the same output
+    as framed_run called eagerly, one primitive at a time; the parameters are still checked on
+    their concrete values, so a bad value is an error naming it and Taubin without a pass band
+    still warns."""
+    from jaxmesh.denoise import METHODS, Method, denoise_in_unit_frame
+    from jaxmesh.denoise import framed
+    from jaxmesh.denoise.framed import framed_run
+    from jaxmesh.mesh import MeshWarning
+
+    noisy = jaxmesh.add_noise(spot, 0.3, 0)
+    mine = Method("mine", METHODS["taubin"].function, METHODS["taubin"].params, "Taubin, unregistered", "")
+    cases = (("taubin", {"lam": 0.4, "mu": -0.42, "iterations": 7}), ("kernel", {"lam": 0.3, "iterations": 2}),
+             ("kernel", {"lam": 0.2, "iterations": 2, "variant": "paper"}), (mine, {"iterations": 3}))
+    programs = framed._method_program._cache_size()
+    for method, params in cases:
+        want, bad = framed_run(noisy, method, **params)
+        got = denoise_in_unit_frame(noisy, method, **params)
+        assert not bool(bad)
+        np.testing.assert_allclose(np.asarray(got.vertices), np.asarray(want.vertices), rtol=0, atol=1e-12)
+        assert np.abs(np.asarray(got.vertices - noisy.vertices)).max() > 1e-4     # it did denoise
+    assert framed._method_program._cache_size() > programs     # programs were compiled: no eager run
+    with pytest.warns(MeshWarning, match="not a low-pass filter"):
+        denoise_in_unit_frame(noisy, "taubin", lam=0.5, mu=-0.3)
+    with pytest.raises(ValueError, match="taubin: lam must be a finite number"):
+        denoise_in_unit_frame(noisy, "taubin", lam=-1.0)
+    with pytest.raises(ValueError, match="iterations must be a non-negative int"):
+        denoise_in_unit_frame(noisy, "kernel", iterations=2.5)

@@ -9,13 +9,15 @@ value passed back in reproduces the tuned run exactly.
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array
 
+from .._exported import stored_jit
 from ..mesh import Mesh
 from ..transforms import far_mask, far_vertices, from_frame, to_frame, unit_frame
-from .registry import Method, as_method, diverged
+from .registry import METHODS, Method, as_method, diverged
 
 __all__ = ["denoise_in_unit_frame", "framed_run"]
 
@@ -60,7 +62,7 @@ def denoise_in_unit_frame(mesh: Mesh, method: str | Method, **params) -> Mesh:
     aux = {k: v for k, v in m.prepare(mesh).items() if params.get(k) is None}
     far = None if mesh.batch_shape else far_vertices(mesh)
     mask = None if far is None else jnp.asarray(np.isin(np.arange(mesh.num_vertices), far))
-    out, bad = framed_run(mesh, m, far=mask, **{**params, **aux})
+    out, bad = _compiled_framed_run(mesh, m, mask, {**params, **aux})
     if bool(bad):
         shown = {k: v for k, v in params.items() if k not in m.aux}
         far = () if far is None else far
@@ -69,3 +71,34 @@ def denoise_in_unit_frame(mesh: Mesh, method: str | Method, **params) -> Mesh:
                 else "use a larger lam, fewer iterations or a smaller step")
         raise FloatingPointError(f"{m.name} diverged (non-finite or exploding coordinates) with {shown}; {hint}")
     return out
+
+
+def _compiled_framed_run(mesh: Mesh, m: Method, far, params: dict) -> tuple[Mesh, Array]:
+    """:func:`framed_run` as one compiled program: the continuous parameters traced, the
+    others static (a registry method's program is a stored one: :mod:`jaxmesh._exported`).
+    The parameters are resolved here first, on their concrete values, so that errors and
+    warnings name them.  A method that reads a file (its content is not part of a
+    program's key), and a call with a traced argument, run :func:`framed_run` directly."""
+    if any(p.kind == "file" for p in m.params.values()) or any(
+            isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves((mesh, far, params))):
+        return framed_run(mesh, m, far=far, **params)
+    full = m.resolve(**{k: v for k, v in params.items() if k not in m.aux})
+    continuous = {k: v for k, v in full.items() if m.params[k].kind == "continuous"}
+    statics = tuple(sorted((k, v) for k, v in full.items() if k not in continuous and m.params[k].kind != "aux"))
+    aux = {k: v for k, v in params.items() if k in m.aux}
+    if METHODS.get(m.name) is m:
+        x, bad = _registered_program(mesh, far, continuous, aux, m.name, statics)
+    else:
+        x, bad = _method_program(mesh, far, continuous, aux, m, statics)
+    return mesh.with_vertices(x), bad
+
+
+def _framed_vertices(mesh: Mesh, far, continuous: dict, aux: dict, method, statics: tuple):
+    out, bad = framed_run(mesh, method, far=far, **continuous, **dict(statics), **aux)
+    return out.vertices, bad
+
+
+#: a registry method by name (a stable key: its programs can be stored between processes)
+_registered_program = stored_jit(_framed_vertices, static_argnames=("method", "statics"))
+#: a method of the caller's own (static by identity: compiled for this process only)
+_method_program = jax.jit(_framed_vertices, static_argnames=("method", "statics"))

@@ -38,7 +38,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float, Int
 
-from .._private import Scalar, safe_normalize
+from .._private import Scalar, one_program, safe_normalize
 from ..mesh import Mesh
 from .bilateral_normal import joint_bilateral_denoising
 from .face_graph import FaceGraph, RingTier
@@ -61,6 +61,7 @@ def _largest_difference(normals: Float[Array, "*batch F 3"], tier: RingTier) -> 
     return jnp.max(jnp.where(pair, 2 - 2 * dots, 0), axis=-1)
 
 
+@one_program
 def patch_inconsistency(graph: FaceGraph, normals: Float[Array, "*batch F 3"]) -> Float[Array, "*batch F"]:
     """H(P_j) = D(P_j) · R(P_j) for the patch P_j = N(j) of every face j (module docstring).
 

@@ -40,7 +40,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from .._private import Scalar, lift, safe_divide, segment_sum_rows
+from .._private import Scalar, lift, one_program, safe_divide, segment_sum_rows
 from ..mesh import Mesh
 from ..operators import neighbor_sum
 from ._loop import iterate
@@ -52,6 +52,7 @@ __all__ = ["neighborhood_covariances", "kernel_weights", "kernel_step", "kernel_
 VARIANTS = ("paper", "random_walk")
 
 
+@one_program
 def neighborhood_covariances(
     mesh: Mesh, x: Float[Array, "*batch V 3"], lam
 ) -> Float[Array, "*batch V 3 3"]:
@@ -161,6 +162,7 @@ def _tier_step(x, y, tier: VertexTier, lam, safeguard: bool):
     return xi + safe_divide(pull, den[:, None])
 
 
+@one_program
 def kernel_weights(mesh: Mesh, x: Float[Array, "*batch V 3"], lam):
     """(κ_ij per directed edge (*batch, H), κ_ii per vertex (*batch, V)) — the
     off-diagonal and diagonal entries of the kernel matrix 𝒦 (eq.10):

@@ -46,7 +46,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from .._private import dot, lift, safe_norm, safe_normalize
+from .._private import dot, lift, one_program, safe_norm, safe_normalize
 from ..denoise._loop import iterate
 from ..denoise.bilateral_normal import joint_bilateral_normals, spatial_weights
 from ..denoise.face_graph import FaceGraph, face_graph
@@ -174,6 +174,7 @@ def _tail(a: Float[Array, "*batch n"]) -> Float[Array, "*batch"]:
     return q[1] / (q[0] + 1e-9)
 
 
+@one_program(static_argnames=("tails",))
 def roughness_features(mesh: Mesh, x: Float[Array, "*batch V 3"], tails: bool = False
                        ) -> Float[Array, "*batch Z"]:
     """z = log of three medians of the noisy mesh: the face normals' deviation d_f from

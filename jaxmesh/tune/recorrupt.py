@@ -48,12 +48,13 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .._exported import stored_jit
-from .._private import RECORRUPTION_STREAM, dot, library_key, lift
+from .._private import RECORRUPTION_STREAM, dot, library_key, lift, one_program
 from ..mesh import Mesh
 
 __all__ = ["edge_tilt", "recorruptions"]
 
 
+@one_program
 def edge_tilt(mesh: Mesh, nu: Float[Array, "F 3"], ell, u: Float[Array, "*batch V 3"]) -> Float[Array, "*batch F 3"]:
     """(A u)_{f,e} = ν_f · (u_b − u_c) / ℓ̄ for the edges (b, c) opposite each corner (module docstring).
 
