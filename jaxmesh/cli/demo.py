@@ -13,7 +13,7 @@ from ..io import save
 from ..noise import add_noise
 from ..transforms import normalize
 from ..metrics import error_summary as errors
-from ._common import check_output
+from ._common import CLIError, check_output
 
 NAMES = {"clean": "bunny_clean.ply", "noisy": "bunny_noisy.ply", "kernel": "bunny_kernel.ply",
          "taubin": "bunny_taubin.ply", "auto": "bunny_auto.ply"}
@@ -41,12 +41,24 @@ def _auto(noisy):
     return f"auto, blind ({what})", choice.mesh
 
 
+def _output_folder(out: Path, files, force: bool) -> None:
+    """Refuse, before any work, outputs that could not be written; make the folder (and its
+    parents) when it does not exist yet, as ``mkdir -p`` does."""
+    if out.exists() and not out.is_dir():
+        raise CLIError(f"{out} exists and is not a directory; name a folder with --out")
+    if not out.exists():
+        try:
+            out.mkdir(parents=True)
+        except OSError as err:
+            raise CLIError(f"{out}: cannot create the folder ({err.strerror or type(err).__name__})") from None
+    for f in files:
+        check_output(str(out / f), force)
+
+
 def run(args) -> int:
     out = Path(args.out)
     names = {k: v for k, v in NAMES.items() if not (args.no_auto and k == "auto")}
-    for f in names.values():
-        check_output(str(out / f), args.force)
-    out.mkdir(parents=True, exist_ok=True)
+    _output_folder(out, names.values(), args.force)
     clean = normalize(data.load_sample("bunny", dtype="float64"))
     noisy = add_noise(clean, args.sigma, args.seed)
     rows = [("noisy input", noisy, 0.0)]

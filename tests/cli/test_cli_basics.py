@@ -116,6 +116,14 @@ def test_list_methods_and_demo(capsys, tmp_path):
         "bunny_clean.ply", "bunny_kernel.ply", "bunny_noisy.ply", "bunny_taubin.ply"]
     assert main(["demo", "--out", str(tmp_path), "--no-auto"]) == 1
     assert main(["demo", "--out", str(tmp_path), "--no-auto", "--force"]) == 0
+    # the folder is made when missing (the README's first command runs `jaxmesh demo` in a fresh checkout)
+    fresh = tmp_path / "new" / "jaxmesh-demo"
+    assert main(["demo", "--out", str(fresh), "--no-auto"]) == 0
+    assert sorted(p.name for p in fresh.iterdir()) == [
+        "bunny_clean.ply", "bunny_kernel.ply", "bunny_noisy.ply", "bunny_taubin.ply"]
+    capsys.readouterr()
+    assert main(["demo", "--out", str(fresh / "bunny_clean.ply"), "--no-auto"]) == 1
+    assert "exists and is not a directory" in capsys.readouterr().err
 
 
 @pytest.mark.slow   # the blind search on the 35k-vertex bunny
