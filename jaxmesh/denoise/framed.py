@@ -50,6 +50,9 @@ def denoise_in_unit_frame(mesh: Mesh, method: str | Method, **params) -> Mesh:
     unless given.  Raises ``FloatingPointError`` when the run diverged
     (non-finite, or a bounding box grown tenfold: :func:`diverged`; a far vertex,
     :func:`~jaxmesh.transforms.far_vertices`, smeared over its neighbours is named).
+    It runs as one compiled program per method and static parameters, the continuous
+    ones traced (a new value does not compile again); a method that reads a file runs
+    op by op.
 
     Arguments:
         mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
