@@ -92,7 +92,8 @@ def _release_compiled_programs():
 # The suite runs with jaxtyping + beartype checking jaxmesh's annotations (pyproject's
 # --jaxtyping-packages); a run without them (-p no:jaxtyping) checks only the library's
 # own validation.
-TYPECHECKED = hasattr(jaxmesh.geometry.vertex_normals, "__wrapped__")
+# (a function that no other decorator wraps: the formula functions' one_program keeps __wrapped__)
+TYPECHECKED = hasattr(jaxmesh.operators.degree, "__wrapped__")
 
 
 def assert_refused(fn, *args, param: str, message: str, error=ValueError, **kwargs):
