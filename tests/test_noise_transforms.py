@@ -176,3 +176,23 @@ def test_denoise_in_unit_frame_compiled_agrees_with_the_eager_framed_run(spot):
         denoise_in_unit_frame(noisy, "taubin", lam=-1.0)
     with pytest.raises(ValueError, match="iterations must be a non-negative int"):
         denoise_in_unit_frame(noisy, "kernel", iterations=2.5)
+
+
+def test_progress_reports_every_iteration_before_and_after_compiled_calls(spot):
+    """A progress callback sees each outer iteration whether or not a compiled program of the
+    same call is kept (one traced outside the context must not be reused inside it, and one
+    traced inside must not call a stale callback later)."""
+    from jaxmesh.denoise import denoise_in_unit_frame, progress
+
+    noisy = jaxmesh.add_noise(spot, 0.3, 0)
+    seen = []
+    with progress(seen.append):
+        first = denoise_in_unit_frame(noisy, "taubin", iterations=4)
+    assert seen == [0, 1, 2, 3]
+    plain = denoise_in_unit_frame(noisy, "taubin", iterations=4)     # compiled, no callback
+    assert seen == [0, 1, 2, 3]
+    again = []
+    with progress(again.append):
+        denoise_in_unit_frame(noisy, "taubin", iterations=4)
+    assert again == [0, 1, 2, 3] and seen == [0, 1, 2, 3]
+    np.testing.assert_allclose(np.asarray(plain.vertices), np.asarray(first.vertices), rtol=0, atol=1e-12)

@@ -22,6 +22,12 @@ def check_iterations(iterations, name: str = "iterations") -> int:
     return iterations
 
 
+def reporting() -> bool:
+    """Whether a :func:`progress` context is active: its callback is traced into the loops, so a
+    compiled program kept for later calls must not be traced (or reused) inside one."""
+    return _PROGRESS.get() is not None
+
+
 @contextlib.contextmanager
 def progress(callback: Callable[[int], None]) -> Iterator[None]:
     """Call ``callback(i)`` after outer iteration i of every denoiser traced

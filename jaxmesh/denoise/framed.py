@@ -17,6 +17,7 @@ from jaxtyping import Array
 from .._exported import stored_jit
 from ..mesh import Mesh
 from ..transforms import far_mask, far_vertices, from_frame, to_frame, unit_frame
+from ._loop import reporting
 from .registry import METHODS, Method, as_method, diverged
 
 __all__ = ["denoise_in_unit_frame", "framed_run"]
@@ -51,8 +52,8 @@ def denoise_in_unit_frame(mesh: Mesh, method: str | Method, **params) -> Mesh:
     (non-finite, or a bounding box grown tenfold: :func:`diverged`; a far vertex,
     :func:`~jaxmesh.transforms.far_vertices`, smeared over its neighbours is named).
     It runs as one compiled program per method and static parameters, the continuous
-    ones traced (a new value does not compile again); a method that reads a file runs
-    op by op.
+    ones traced (a new value does not compile again); a method that reads a file, or a
+    call inside :func:`~jaxmesh.denoise.progress`, runs op by op.
 
     Arguments:
         mesh: the mesh (single, or with batched vertices (*batch, V, 3)).
@@ -81,8 +82,9 @@ def _compiled_framed_run(mesh: Mesh, m: Method, far, params: dict) -> tuple[Mesh
     others static (a registry method's program is a stored one: :mod:`jaxmesh._exported`).
     The parameters are resolved here first, on their concrete values, so that errors and
     warnings name them.  A method that reads a file (its content is not part of a
-    program's key), and a call with a traced argument, run :func:`framed_run` directly."""
-    if any(p.kind == "file" for p in m.params.values()) or any(
+    program's key), a call inside a progress context (its callback is traced into the
+    program) and a call with a traced argument run :func:`framed_run` directly."""
+    if reporting() or any(p.kind == "file" for p in m.params.values()) or any(
             isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves((mesh, far, params))):
         return framed_run(mesh, m, far=far, **params)
     full = m.resolve(**{k: v for k, v in params.items() if k not in m.aux})

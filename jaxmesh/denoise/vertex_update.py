@@ -33,7 +33,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from .._private import dot, lift, one_program, safe_divide, safe_normalize, segment_sum_rows, segment_sum_scalars
+from .._private import dot, lift, safe_divide, safe_normalize, segment_sum_rows, segment_sum_scalars
 from ..mesh import Mesh
 from ..operators import umbrella
 from ._loop import iterate
@@ -41,7 +41,6 @@ from ._loop import iterate
 __all__ = ["vertex_update"]
 
 
-@one_program(static_argnames=("iterations",))
 def vertex_update(
     mesh: Mesh, x: Float[Array, "*batch V 3"], normals: Float[Array, "*batch F 3"], iterations: int,
     weights: Float[Array, "*batch F"] | None = None, tangential=0.0,
