@@ -87,10 +87,12 @@ def _compiled_framed_run(mesh: Mesh, m: Method, far, params: dict) -> tuple[Mesh
     if reporting() or any(p.kind == "file" for p in m.params.values()) or any(
             isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves((mesh, far, params))):
         return framed_run(mesh, m, far=far, **params)
-    full = m.resolve(**{k: v for k, v in params.items() if k not in m.aux})
+    full = m.resolve(**{k: v for k, v in params.items() if k not in m.aux and k not in m.host_inputs})
     continuous = {k: v for k, v in full.items() if m.params[k].kind == "continuous"}
     statics = tuple(sorted((k, v) for k, v in full.items() if k not in continuous and m.params[k].kind != "aux"))
-    aux = {k: v for k, v in params.items() if k in m.aux}
+    aux = {k: v for k, v in params.items() if k in m.aux or k in m.host_inputs}
+    if mesh.faces.ndim == 2:        # one connectivity: what the method would build from it eagerly
+        aux.update({k: build(mesh) for k, build in m.host_inputs.items() if k not in aux})
     if METHODS.get(m.name) is m:
         x, bad = _registered_program(mesh, far, continuous, aux, m.name, statics)
     else:

@@ -34,6 +34,7 @@ from .laplacian import BOUNDARY_MODES, hc_smoothing, taubin_smoothing, umbrella_
 from .bilateral_normal import bilateral_normal_filtering
 from .face_graph import face_graph
 from .selection import hold
+from .vertex_rings import vertex_rings
 from .guided import guided_normal_filtering
 from .impulse_repair import impulse_repair
 from .l0 import l0_denoising
@@ -104,6 +105,11 @@ class Method:
     #: (``"mean_edge_length"``): on a union each mesh is scaled so that its own is 1, which
     #: makes the union's 1 as well, so each mesh again gets its own result
     unit: str | None = None
+    #: inputs that ``function`` builds itself from concrete connectivity when they are not
+    #: given (name -> builder; the kernel flow's vertex rings): not parameters, but passed
+    #: through to ``function``.  A compiled call on one mesh, where the connectivity is
+    #: traced, builds them on the host first (:func:`~jaxmesh.denoise.denoise_in_unit_frame`)
+    host_inputs: dict[str, Callable[[Mesh], Any]] = dataclasses.field(default_factory=dict)
 
     @property
     def packable(self) -> bool:
@@ -164,7 +170,8 @@ class Method:
         when called eagerly, an equinox runtime error (``eqx.error_if``) under ``jit`` and
         ``vmap``; ``throw=False`` returns it for the caller to check (the tuner and the
         dataset runner do, with :func:`diverged`)."""
-        out = self.function(mesh, **self.resolve(**params))
+        extra = {k: params.pop(k) for k in self.host_inputs if k in params}
+        out = self.function(mesh, **self.resolve(**params), **extra)
         if not throw:
             return out
         x = out.vertices
@@ -234,7 +241,8 @@ METHODS: dict[str, Method] = {
             "variant": Param("random_walk", "choice", "update rule", choices=("random_walk", "paper")),
             "safeguard": Param(True, "choice", "cap the random-walk step (never diverges)",
                                choices=(True, False)),
-        }, "multivariate kernel diffusion (the thesis, ch.2)", "Tarmissi 2010, ch.2 eq.6-12", local=True),
+        }, "multivariate kernel diffusion (the thesis, ch.2)", "Tarmissi 2010, ch.2 eq.6-12", local=True,
+            host_inputs={"rings": vertex_rings}),
         Method("cauchy_diffusion", anisotropic_diffusion, {
             "dt": Param(0.25, "continuous", "step size", (0.01, 0.5), True),
             "c": Param(1.0, "continuous", "Cauchy scale, relative to the mean |∇x|", (0.05, 20.0), True),
