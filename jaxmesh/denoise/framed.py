@@ -17,7 +17,7 @@ from jaxtyping import Array
 from .._exported import stored_jit
 from ..mesh import Mesh
 from ..transforms import far_mask, far_vertices, from_frame, to_frame, unit_frame
-from ._loop import reporting
+from ._compiled import compilable, split_call
 from .registry import METHODS, Method, as_method, diverged
 
 __all__ = ["denoise_in_unit_frame", "framed_run"]
@@ -78,25 +78,16 @@ def denoise_in_unit_frame(mesh: Mesh, method: str | Method, **params) -> Mesh:
 
 
 def _compiled_framed_run(mesh: Mesh, m: Method, far, params: dict) -> tuple[Mesh, Array]:
-    """:func:`framed_run` as one compiled program: the continuous parameters traced, the
-    others static (a registry method's program is a stored one: :mod:`jaxmesh._exported`).
-    The parameters are resolved here first, on their concrete values, so that errors and
-    warnings name them.  A method that reads a file (its content is not part of a
-    program's key), a call inside a progress context (its callback is traced into the
-    program) and a call with a traced argument run :func:`framed_run` directly."""
-    if reporting() or any(p.kind == "file" for p in m.params.values()) or any(
-            isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves((mesh, far, params))):
+    """:func:`framed_run` as one kept program (:mod:`jaxmesh.denoise._compiled`; a registry
+    method's program is also stored between processes: :mod:`jaxmesh._exported`), or run
+    directly where :func:`~jaxmesh.denoise._compiled.compilable` says no."""
+    if not compilable(m, mesh, {**params, "far": far}):
         return framed_run(mesh, m, far=far, **params)
-    full = m.resolve(**{k: v for k, v in params.items() if k not in m.aux and k not in m.host_inputs})
-    continuous = {k: v for k, v in full.items() if m.params[k].kind == "continuous"}
-    statics = tuple(sorted((k, v) for k, v in full.items() if k not in continuous and m.params[k].kind != "aux"))
-    aux = {k: v for k, v in params.items() if k in m.aux or k in m.host_inputs}
-    if mesh.faces.ndim == 2:        # one connectivity: what the method would build from it eagerly
-        aux.update({k: build(mesh) for k, build in m.host_inputs.items() if k not in aux})
+    continuous, statics, inputs = split_call(m, mesh, params)
     if METHODS.get(m.name) is m:
-        x, bad = _registered_program(mesh, far, continuous, aux, m.name, statics)
+        x, bad = _registered_program(mesh, far, continuous, inputs, m.name, statics)
     else:
-        x, bad = _method_program(mesh, far, continuous, aux, m, statics)
+        x, bad = _method_program(mesh, far, continuous, inputs, m, statics)
     return mesh.with_vertices(x), bad
 
 

@@ -22,9 +22,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._private import lift, safe_norm
 from ..mesh import Mesh, MeshWarning
-from ..transforms import far_mask
 from .anisotropic import anisotropic_diffusion
 from .bilateral import bilateral_denoising
 from .curvature import cotangent_flow
@@ -33,6 +31,8 @@ from .kernel_flow import kernel_diffusion
 from .laplacian import BOUNDARY_MODES, hc_smoothing, taubin_smoothing, umbrella_flow
 from .bilateral_normal import bilateral_normal_filtering
 from .face_graph import face_graph
+from ._compiled import compilable, method_program, split_call
+from .divergence import diverged
 from .selection import hold
 from .vertex_rings import vertex_rings
 from .guided import guided_normal_filtering
@@ -170,8 +170,12 @@ class Method:
         when called eagerly, an equinox runtime error (``eqx.error_if``) under ``jit`` and
         ``vmap``; ``throw=False`` returns it for the caller to check (the tuner and the
         dataset runner do, with :func:`diverged`)."""
-        extra = {k: params.pop(k) for k in self.host_inputs if k in params}
-        out = self.function(mesh, **self.resolve(**params), **extra)
+        if compilable(self, mesh, params) and mesh.faces.ndim == 2:      # one kept program (denoise._compiled)
+            continuous, statics, inputs = split_call(self, mesh, params)
+            out = mesh.with_vertices(method_program(mesh, continuous, inputs, self, statics))
+        else:
+            extra = {k: params.pop(k) for k in self.host_inputs if k in params}
+            out = self.function(mesh, **self.resolve(**params), **extra)
         if not throw:
             return out
         x = out.vertices
@@ -368,40 +372,3 @@ def denoise(mesh: Mesh, method: "str | Method" = "kernel", *, where=None, throw:
     out = as_method(method)(mesh, throw=throw, **params)
     return out if where is None else hold(mesh, out, where)
 
-
-def diverged(before: Mesh, after: Mesh, growth: float = 10.0, far=None, segment=None, segments: int | None = None):
-    """True (per batch element) where ``after`` has a non-finite coordinate or a
-    bounding-box diagonal more than ``growth`` times that of ``before``: a
-    smoothing flow never enlarges a mesh, so growth means the run blew up.  Both
-    boxes are of the vertices that are not far in ``before``
-    (:func:`~jaxmesh.transforms.far_mask`), so a corrupt coordinate smeared over
-    its neighbours counts as growth.  With ``segment``, the same test for each mesh
-    of a disjoint union (:func:`jaxmesh.batch.pack_batch`).
-
-    Arguments:
-        before: the input mesh.
-        after: the output mesh.
-        growth: the largest allowed growth of the bounding-box diagonal.
-        far: :func:`~jaxmesh.transforms.far_mask` of ``before``, when the caller has it
-            (required with ``segment``: each mesh's own).
-        segment: the mesh each vertex of a union belongs to, (V,) (default: one mesh).
-        segments: the number of segments (static), with ``segment``.
-
-    Returns:
-        A bool array, (*batch), or (segments,) with ``segment``."""
-    x = after.vertices
-    if segment is None:
-        finite = jnp.all(jnp.isfinite(x), axis=(-2, -1))
-        top = functools.partial(jnp.max, axis=-2)
-        bottom = functools.partial(jnp.min, axis=-2)
-    else:
-        finite = jax.ops.segment_min(jnp.all(jnp.isfinite(x), axis=-1).astype(jnp.int32), segment, segments) > 0
-        top = functools.partial(jax.ops.segment_max, segment_ids=segment, num_segments=segments)
-        bottom = functools.partial(jax.ops.segment_min, segment_ids=segment, num_segments=segments)
-    near = lift(~(far_mask(before) if far is None else far)[..., None], x.ndim)
-
-    def diagonal(v):
-        return safe_norm(top(jnp.where(near, v, -jnp.inf)) - bottom(jnp.where(near, v, jnp.inf)))
-
-    grown = diagonal(x) > growth * diagonal(before.vertices)
-    return ~finite | grown
