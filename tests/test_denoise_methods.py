@@ -90,8 +90,9 @@ def test_jit_equals_eager_and_batch_equals_loop(small_sphere, name):
     with jax.disable_jit():     # an eager call runs one kept program (denoise._compiled): this is op by op
         eager = method(small_sphere).vertices
     f = compiled(method, small_sphere)
-    np.testing.assert_allclose(method(small_sphere).vertices, eager, rtol=1e-9, atol=1e-11)
-    np.testing.assert_allclose(f(small_sphere.vertices), eager, rtol=1e-9, atol=1e-11)
+    atol = SOLVER_ATOL.get(name, 1e-11)     # an iterative solve op by op rounds differently: its tolerance
+    np.testing.assert_allclose(method(small_sphere).vertices, eager, rtol=1e-9, atol=atol)
+    np.testing.assert_allclose(f(small_sphere.vertices), eager, rtol=1e-9, atol=atol)
     keys = jax.random.split(jax.random.PRNGKey(1), 3)
     copies = jnp.stack([jaxmesh.add_noise(small_sphere, 0.1, k).vertices for k in keys])
     batched = f(copies)
