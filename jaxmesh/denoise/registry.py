@@ -169,7 +169,9 @@ class Method:
         With ``throw``, a non-finite output coordinate is an error: ``FloatingPointError``
         when called eagerly, an equinox runtime error (``eqx.error_if``) under ``jit`` and
         ``vmap``; ``throw=False`` returns it for the caller to check (the tuner and the
-        dataset runner do, with :func:`diverged`)."""
+        dataset runner do, with :func:`diverged`).  Called with concrete inputs on one
+        connectivity it runs one compiled program, kept for later calls (the continuous
+        parameters traced, the host-built inputs passed in: :mod:`jaxmesh.denoise._compiled`)."""
         if compilable(self, mesh, params) and mesh.faces.ndim == 2:      # one kept program (denoise._compiled)
             continuous, statics, inputs = split_call(self, mesh, params)
             out = mesh.with_vertices(method_program(mesh, continuous, inputs, self, statics))
@@ -371,4 +373,3 @@ def denoise(mesh: Mesh, method: "str | Method" = "kernel", *, where=None, throw:
         The denoised mesh (same topology)."""
     out = as_method(method)(mesh, throw=throw, **params)
     return out if where is None else hold(mesh, out, where)
-
