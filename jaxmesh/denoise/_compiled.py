@@ -31,9 +31,8 @@ def split_call(m, mesh, params: dict) -> tuple[dict, tuple, dict]:
     resolved on the given values; the inputs not given are built, those of ``host_inputs`` only
     for one connectivity (``mesh.faces`` (F, 3)), as the method would build them itself."""
     given = {k: v for k, v in params.items() if (k in m.aux or k in m.host_inputs) and v is not None}
-    full = m.resolve(**{k: v for k, v in params.items() if k not in m.aux and k not in m.host_inputs})
-    continuous = {k: v for k, v in full.items() if m.params[k].kind == "continuous"}
-    statics = tuple(sorted((k, v) for k, v in full.items() if k not in continuous and m.params[k].kind != "aux"))
+    continuous, statics = m.parts(m.resolve(**{k: v for k, v in params.items()
+                                               if k not in m.aux and k not in m.host_inputs}))
     builders = {k: m.params[k].build for k in m.aux}
     if mesh.faces.ndim == 2:
         builders.update(m.host_inputs)

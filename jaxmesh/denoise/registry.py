@@ -158,11 +158,14 @@ class Method:
         tuple) of the resolved parameters, auxiliary inputs left out: the traced
         and the static arguments of one compiled call (defaults included, so every
         continuous value is traced and a new value never recompiles)."""
-        full = self.resolve(**params)
-        cont = {k: jnp.asarray(v, jnp.result_type(float)) for k, v in full.items()
-                if self.params[k].kind == "continuous"}
-        statics = tuple(sorted((k, v) for k, v in full.items() if k not in cont and self.params[k].kind != "aux"))
-        return cont, statics
+        cont, statics = self.parts(self.resolve(**params))
+        return {k: jnp.asarray(v, jnp.result_type(float)) for k, v in cont.items()}, statics
+
+    def parts(self, full: dict[str, Any]) -> tuple[dict[str, Any], tuple]:
+        """(the continuous parameters as given, the others as a sorted hashable tuple) of
+        resolved parameters ``full``, auxiliary inputs left out."""
+        cont = {k: v for k, v in full.items() if self.params[k].kind == "continuous"}
+        return cont, tuple(sorted((k, v) for k, v in full.items() if k not in cont and self.params[k].kind != "aux"))
 
     def __call__(self, mesh: Mesh, *, throw: bool = True, **params) -> Mesh:
         """The method on ``mesh`` with ``params`` (defaults from :attr:`params`, each checked).
