@@ -196,3 +196,36 @@ def test_progress_reports_every_iteration_before_and_after_compiled_calls(spot):
         denoise_in_unit_frame(noisy, "taubin", iterations=4)
     assert again == [0, 1, 2, 3] and seen == [0, 1, 2, 3]
     np.testing.assert_allclose(np.asarray(plain.vertices), np.asarray(first.vertices), rtol=0, atol=1e-12)
+
+
+def test_host_built_inputs_are_kept_per_connectivity(spot):
+    """A compiled call's host-built inputs (the face graph) are built once per connectivity:
+    new positions on the same faces reuse them, other faces of the same sizes (or a copy of the
+    mesh with two faces swapped) build their own, and the output equals a call given a freshly
+    built graph."""
+    from jaxmesh.denoise import METHODS, _compiled
+    from jaxmesh.denoise.face_graph import face_graph
+
+    calls = []
+
+    def counting(mesh):
+        calls.append(mesh.num_faces)
+        return face_graph(mesh)
+
+    noisy = jaxmesh.add_noise(spot, 0.3, 0)
+    _compiled.forget_host_built()
+    first = _compiled.host_built(counting, noisy)
+    assert _compiled.host_built(counting, jaxmesh.add_noise(spot, 0.3, 1)) is first and len(calls) == 1
+    f = np.asarray(spot.faces)
+    swapped = jaxmesh.Mesh.from_arrays(np.asarray(spot.vertices), f[np.r_[1, 0, 2:len(f)]])
+    assert _compiled.connectivity_key(swapped) != _compiled.connectivity_key(spot)
+    other = _compiled.host_built(counting, swapped)
+    assert len(calls) == 2 and other is not first
+    np.testing.assert_array_equal(np.asarray(other.ring[:2]), np.asarray(face_graph(swapped).ring[:2]))
+    assert _compiled.host_built(counting, noisy) is not first and len(calls) == 3     # one entry per builder
+    _compiled.forget_host_built()
+    kept = METHODS["bilateral_normal"](noisy, iterations=2)
+    again = METHODS["bilateral_normal"](noisy, iterations=2)       # the kept graph
+    given = METHODS["bilateral_normal"](noisy, iterations=2, graph=face_graph(noisy))
+    np.testing.assert_array_equal(np.asarray(again.vertices), np.asarray(kept.vertices))
+    np.testing.assert_array_equal(np.asarray(given.vertices), np.asarray(kept.vertices))

@@ -9,13 +9,61 @@ values (errors and warnings name them), then call one ``jax.jit`` program with t
 continuous parameters traced (a new value does not compile again) and the others static,
 the host-built inputs (the face graph, the kernel flow's vertex rings) passed in.
 ``jax.disable_jit()`` gives the op-by-op run back.
+
+The host-built inputs depend on the connectivity alone, so each builder keeps what it built
+for the last connectivity it saw (:func:`host_built`): calls on one mesh (a parameter sweep,
+a notebook) build the face graph once.  The key is a digest of every connectivity array, so
+a mesh with other faces, even of the same size, builds its own; one entry per builder bounds
+the memory to one mesh's inputs.
 """
 
 from __future__ import annotations
 
+import hashlib
+import threading
+
 import jax
+import numpy as np
 
 from ._loop import reporting
+
+_CONNECTIVITY = ("faces", "edges", "face_edges", "src", "dst", "edge_of", "degree")
+_built: dict = {}
+_lock = threading.Lock()
+
+
+def connectivity_key(mesh) -> tuple:
+    """A digest of a single mesh's connectivity arrays (with their shapes and dtypes): equal
+    for two meshes exactly when their topologies are (up to a BLAKE2b collision)."""
+    digest = hashlib.blake2b(digest_size=20)
+    for name in _CONNECTIVITY:
+        a = np.ascontiguousarray(getattr(mesh, name))
+        digest.update(f"{name}{a.shape}{a.dtype}".encode())
+        digest.update(a.data)
+    return mesh.num_vertices, digest.hexdigest()
+
+
+def host_built(build, mesh):
+    """``build(mesh)`` for a host builder that reads only the connectivity, kept for the last
+    connectivity each builder saw (module docstring); traced connectivity goes to ``build`` as
+    it is (which refuses it with its own message)."""
+    if any(isinstance(getattr(mesh, name), jax.core.Tracer) for name in _CONNECTIVITY):
+        return build(mesh)
+    key = connectivity_key(mesh)
+    with _lock:
+        hit = _built.get(build)
+    if hit is not None and hit[0] == key:
+        return hit[1]
+    value = build(mesh)
+    with _lock:
+        _built[build] = (key, value)
+    return value
+
+
+def forget_host_built() -> None:
+    """Drop every kept host-built input (their memory is released with the last reference)."""
+    with _lock:
+        _built.clear()
 
 
 def compilable(m, mesh, params: dict) -> bool:
@@ -36,7 +84,8 @@ def split_call(m, mesh, params: dict) -> tuple[dict, tuple, dict]:
     builders = {k: m.params[k].build for k in m.aux}
     if mesh.faces.ndim == 2:
         builders.update(m.host_inputs)
-    return continuous, statics, {**{k: b(mesh) for k, b in builders.items() if k not in given}, **given}
+    return continuous, statics, {**{k: host_built(b, mesh) for k, b in builders.items() if k not in given},
+                                 **given}
 
 
 def _method_vertices(mesh, continuous: dict, inputs: dict, method, statics: tuple):

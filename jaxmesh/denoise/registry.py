@@ -31,7 +31,7 @@ from .kernel_flow import kernel_diffusion
 from .laplacian import BOUNDARY_MODES, hc_smoothing, taubin_smoothing, umbrella_flow
 from .bilateral_normal import bilateral_normal_filtering
 from .face_graph import face_graph
-from ._compiled import compilable, method_program, split_call
+from ._compiled import compilable, host_built, method_program, split_call
 from .divergence import diverged
 from .selection import hold
 from .vertex_rings import vertex_rings
@@ -130,8 +130,9 @@ class Method:
     def prepare(self, mesh: Mesh) -> dict[str, Any]:
         """The auxiliary inputs (host-built topology) for ``mesh``: pass them as
         keyword arguments to call the method under ``jit`` with the mesh traced.
-        Empty for methods that need none."""
-        return {k: self.params[k].build(mesh) for k in self.aux}
+        Empty for methods that need none.  Built once per connectivity: a later call on the same
+        faces returns what was built (:func:`jaxmesh.denoise._compiled.host_built`)."""
+        return {k: host_built(self.params[k].build, mesh) for k in self.aux}
 
     def resolve(self, **params) -> dict[str, Any]:
         unknown = sorted(set(params) - set(self.params))
