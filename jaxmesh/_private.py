@@ -3,10 +3,18 @@
 from __future__ import annotations
 
 import functools
+import os
+import sys
 
 import jax
 import jax.numpy as jnp
+import jaxtyping
 from jaxtyping import Array, ArrayLike, Float, Int, Shaped
+
+#: the folders of run-time annotation checkers' wrappers (jaxtyping's import hook, when it checks jaxmesh)
+_CHECKERS = (os.path.dirname(os.path.abspath(jaxtyping.__file__)) + os.sep,)
+#: frames in these folders are the library's: jaxmesh's own, and the checkers' wrappers of them
+_LIBRARY = (os.path.dirname(os.path.abspath(__file__)) + os.sep, *_CHECKERS)
 
 #: a continuous denoiser parameter: a number, or a float array (one value per batch element; traced under jit)
 Scalar = Float[ArrayLike, "..."] | float | int
@@ -27,6 +35,18 @@ def one_program(fun=None, *, static_argnames: tuple[str, ...] = ()):
         return jitted(*args, **kwargs)
 
     return run
+
+
+def caller_stacklevel() -> int:
+    """The ``stacklevel`` for a ``warnings.warn`` made by the function calling this one that
+    names the first frame outside the library (jaxmesh, and jaxtyping's run-time checks): the
+    user's line, however many library frames (a compiled call, a framed run) lie between."""
+    frame, level = sys._getframe(1), 1
+    while frame.f_code.co_filename.startswith(_CHECKERS):      # a checker's wrapper of this function
+        frame = frame.f_back
+    while frame is not None and frame.f_code.co_filename.startswith(_LIBRARY):
+        frame, level = frame.f_back, level + 1
+    return level
 
 
 def segment_sum_rows(

@@ -32,6 +32,7 @@ import numpy as np
 
 from . import _meshtext as _text
 from . import _ply
+from ._private import caller_stacklevel
 from .attributes import MeshAttributes, rewrite
 from .mesh import Mesh, MeshWarning
 
@@ -104,7 +105,7 @@ def merge_duplicate_vertices(vertices: np.ndarray, faces: np.ndarray) -> tuple[n
         warnings.warn(
             f"merging duplicates collapsed {int((~ok).sum())} faces; they were dropped",
             MeshWarning,
-            stacklevel=3,
+            stacklevel=caller_stacklevel(),
         )
     return vertices[keep], f[ok]
 

@@ -19,6 +19,8 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float, Int
 
+from ._private import caller_stacklevel
+
 __all__ = ["Mesh", "MeshWarning", "build_topology"]
 
 
@@ -128,7 +130,7 @@ def to_device(a: np.ndarray | dict[str, np.ndarray], dtype=None) -> Array | dict
     target = jax.dtypes.canonicalize_dtype(a.dtype if dtype is None else dtype)
     if dtype is not None and np.dtype(dtype) != target:
         warnings.warn(f"dtype {np.dtype(dtype)} is not available without jax_enable_x64; using {target}",
-                      UserWarning, stacklevel=3)
+                      UserWarning, stacklevel=caller_stacklevel())
     return jax.device_put(np.asarray(a, dtype=target))
 
 

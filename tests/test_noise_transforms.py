@@ -229,3 +229,19 @@ def test_host_built_inputs_are_kept_per_connectivity(spot):
     given = METHODS["bilateral_normal"](noisy, iterations=2, graph=face_graph(noisy))
     np.testing.assert_array_equal(np.asarray(again.vertices), np.asarray(kept.vertices))
     np.testing.assert_array_equal(np.asarray(given.vertices), np.asarray(kept.vertices))
+
+
+def test_taubin_pass_band_warning_names_the_callers_line(spot):
+    """The warning for μ > −λ points at the user's call, whether the call runs compiled,
+    framed, or op by op under ``jax.disable_jit()``: not at a line inside the library."""
+    from jaxmesh.denoise import METHODS, denoise_in_unit_frame
+    from jaxmesh.mesh import MeshWarning
+
+    calls = (lambda: METHODS["taubin"](spot, lam=0.5, mu=-0.3, iterations=1),
+             lambda: denoise_in_unit_frame(spot, "taubin", lam=0.5, mu=-0.3, iterations=1))
+    for call in calls:
+        for eager in (False, True):
+            with pytest.warns(MeshWarning, match="not a low-pass filter") as record, jax.disable_jit(eager):
+                call()
+            got = [(w.filename, w.lineno) for w in record if "low-pass" in str(w.message)]
+            assert got and all(f == __file__ for f, _ in got), (eager, got)

@@ -22,6 +22,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._private import caller_stacklevel
 from ..mesh import Mesh, MeshWarning
 from .anisotropic import anisotropic_diffusion
 from .bilateral import bilateral_denoising
@@ -218,8 +219,8 @@ def _taubin_pass_band(p: dict) -> str | None:
     if isinstance(lam, jax.core.Tracer) or isinstance(mu, jax.core.Tracer):
         return None
     if np.any(np.asarray(mu, np.float64) > -np.asarray(lam, np.float64)):
-        warnings.warn(f"taubin with μ > -λ (λ = {lam}, μ = {mu}) is not a low-pass filter: "
-                      "it has no pass band and may amplify high frequencies", MeshWarning, stacklevel=4)
+        warnings.warn(f"taubin with μ > -λ (λ = {lam}, μ = {mu}) is not a low-pass filter: it has no "
+                      "pass band and may amplify high frequencies", MeshWarning, stacklevel=caller_stacklevel())
     return None
 
 
@@ -267,8 +268,8 @@ METHODS: dict[str, Method] = {
         Method("taubin", taubin_smoothing, {
             "lam": Param(0.5, "continuous", "shrinking step λ ∈ (0, 1]", (0.01, 1.0), True, domain=(0.0, 1.0),
                          closed="(]"),
-            "mu": Param(-0.53, "continuous", "inflating step μ ∈ [-1, 0); μ ≤ -λ for a low-pass filter (else a warning)", (-1.0, -0.01),
-                        domain=(-1.0, 0.0), closed="[)"),
+            "mu": Param(-0.53, "continuous", "inflating step μ ∈ [-1, 0); μ ≤ -λ for a low-pass filter (else a warning)",
+                        (-1.0, -0.01), domain=(-1.0, 0.0), closed="[)"),
             "iterations": _it(10),
             "boundary": _BOUNDARY,
         }, "Taubin λ|μ low-pass filter", "Taubin 1995", _taubin_pass_band, local=True),

@@ -53,7 +53,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._exported import stored_jit
-from .._private import PATCH_STREAM, library_key
+from .._private import PATCH_STREAM, caller_stacklevel, library_key
 from .._threads import concurrent_map
 from ..geometry import face_normals, mean_edge_length, vertex_normals
 from ..host import HostMesh
@@ -239,7 +239,7 @@ def _unchanged(noisy: Mesh, seconds: float) -> AutoResult:
     """The result for a mesh that reads as noise-free (σ̂ = 0): the input itself, with a warning."""
     warnings.warn(f"the mesh reads as noise-free (noise estimate 0 from {noisy.num_vertices} vertices: an exactly "
                   "smooth surface, or too few vertices), so it is returned unchanged; give the noise level to "
-                  "denoise it anyway (CLI: --noise-sigma)", BlindTuningWarning, stacklevel=3)
+                  "denoise it anyway (CLI: --noise-sigma)", BlindTuningWarning, stacklevel=caller_stacklevel())
     return AutoResult("none", {}, noisy, 0.0, True, 0.0, 0.0, 0.0, False, [], (), "none", 0.0, 0,
                       {"noise_law": round(seconds, 3), "patches": 0.0, "ranking": 0.0, "choice": 0.0})
 

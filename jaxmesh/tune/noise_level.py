@@ -59,6 +59,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .._exported import stored_jit
+from .._private import caller_stacklevel
 from ..geometry import mean_edge_length, vertex_normals
 from ..host import HostMesh, as_host
 from ..mesh import Mesh
@@ -361,5 +362,5 @@ def blind_caveats(mesh: Mesh, sigma: float, estimated: bool, relative_risk: floa
                    "estimator also counts the surface's own detail (up to 3x too high): the result may be "
                    "over-smoothed; give the noise level if you know it (CLI: --noise-sigma)")
     for text in out:
-        warnings.warn(text, BlindTuningWarning, stacklevel=3)
+        warnings.warn(text, BlindTuningWarning, stacklevel=caller_stacklevel())
     return out
