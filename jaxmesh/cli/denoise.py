@@ -138,7 +138,7 @@ def run(args) -> int:
     start = time.perf_counter()
     tuning = args.tune or "auto" in given.values()
     total = given.get("iterations", as_method(args.method).defaults().get("iterations", 1))
-    with progress_bar(args.method, total) if not tuning else contextlib.nullcontext():
+    with progress_bar(args.method, total, mesh.num_vertices) if not tuning else contextlib.nullcontext():
         result, caveats = with_caveats(denoise_with_tuning, mesh, args.method, given, tune_all=args.tune,
                                        reference=reference, sigma=args.noise_sigma, unit_frame=not args.raw_units)
     if where is not None:

@@ -431,3 +431,20 @@ def test_noise_impulsive_model(capsys, tmp_path):
     assert "--fraction applies to --model impulsive only" in capsys.readouterr().err
     assert main(["noise", "--sample", "spot", bad, "--sigma", "inf"]) == 1
     assert not (tmp_path / "bad.ply").exists()
+
+
+def test_the_progress_bar_is_for_large_meshes_at_a_terminal(monkeypatch):
+    """`jaxmesh denoise`'s bar hooks the loop (which then compiles anew) only at a terminal and
+    for a mesh of BAR_VERTICES or more; elsewhere no hook, so the run uses the kept program."""
+    from jaxmesh.cli._denoise_report import BAR_VERTICES, progress_bar
+    from jaxmesh.denoise._loop import reporting
+
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True, raising=False)
+    with progress_bar("kernel", 5, BAR_VERTICES - 1):
+        assert not reporting()
+    with progress_bar("kernel", 5, BAR_VERTICES):
+        assert reporting()
+    assert not reporting()
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: False, raising=False)
+    with progress_bar("kernel", 5, BAR_VERTICES):
+        assert not reporting()
