@@ -198,11 +198,11 @@ def test_progress_reports_every_iteration_before_and_after_compiled_calls(spot):
     np.testing.assert_allclose(np.asarray(plain.vertices), np.asarray(first.vertices), rtol=0, atol=1e-12)
 
 
-def test_host_built_inputs_are_kept_per_connectivity(spot):
+def test_host_built_inputs_are_kept_per_connectivity(spot, monkeypatch):
     """A compiled call's host-built inputs (the face graph) are built once per connectivity:
     new positions on the same faces reuse them, other faces of the same sizes (or a copy of the
-    mesh with two faces swapped) build their own, and the output equals a call given a freshly
-    built graph."""
+    mesh with two faces swapped) build their own, an input over HOST_BUILT_MAX_BYTES is not kept,
+    and the output equals a call given a freshly built graph."""
     from jaxmesh.denoise import METHODS, _compiled
     from jaxmesh.denoise.face_graph import face_graph
 
@@ -223,6 +223,11 @@ def test_host_built_inputs_are_kept_per_connectivity(spot):
     assert len(calls) == 2 and other is not first
     np.testing.assert_array_equal(np.asarray(other.ring[:2]), np.asarray(face_graph(swapped).ring[:2]))
     assert _compiled.host_built(counting, noisy) is not first and len(calls) == 3     # one entry per builder
+    monkeypatch.setattr(_compiled, "HOST_BUILT_MAX_BYTES", 1000)              # too large to keep: built again
+    _compiled.host_built(counting, swapped)
+    _compiled.host_built(counting, swapped)
+    assert len(calls) == 5
+    monkeypatch.undo()
     _compiled.forget_host_built()
     kept = METHODS["bilateral_normal"](noisy, iterations=2)
     again = METHODS["bilateral_normal"](noisy, iterations=2)       # the kept graph

@@ -13,8 +13,8 @@ the host-built inputs (the face graph, the kernel flow's vertex rings) passed in
 The host-built inputs depend on the connectivity alone, so each builder keeps what it built
 for the last connectivity it saw (:func:`host_built`): calls on one mesh (a parameter sweep,
 a notebook) build the face graph once.  The key is a digest of every connectivity array, so
-a mesh with other faces, even of the same size, builds its own; one entry per builder bounds
-the memory to one mesh's inputs.
+a mesh with other faces, even of the same size, builds its own; one entry per builder, and
+none larger than :data:`HOST_BUILT_MAX_BYTES`, bound the memory kept between calls.
 """
 
 from __future__ import annotations
@@ -28,6 +28,8 @@ import numpy as np
 from ._loop import reporting
 
 _CONNECTIVITY = ("faces", "edges", "face_edges", "src", "dst", "edge_of", "degree")
+#: a host-built input larger than this is not kept between calls (a face graph takes about 300 bytes a face)
+HOST_BUILT_MAX_BYTES = 256 << 20
 _built: dict = {}
 _lock = threading.Lock()
 
@@ -55,8 +57,12 @@ def host_built(build, mesh):
     if hit is not None and hit[0] == key:
         return hit[1]
     value = build(mesh)
+    size = sum(int(getattr(leaf, "nbytes", 0)) for leaf in jax.tree_util.tree_leaves(value))
     with _lock:
-        _built[build] = (key, value)
+        if size <= HOST_BUILT_MAX_BYTES:
+            _built[build] = (key, value)
+        else:                     # too large to hold on to: neither it nor the last mesh's is kept
+            _built.pop(build, None)
     return value
 
 
