@@ -40,6 +40,7 @@ def commands(mesh: Path, tmp: Path) -> dict[str, list[str]]:
         "noise": ["noise", str(mesh), str(tmp / "out-noise.ply"), "--force"],
         "denoise --method taubin": ["denoise", str(noisy), str(tmp / "out-t.ply"), "--method", "taubin", "--force"],
         "denoise --method kernel": ["denoise", str(noisy), str(tmp / "out-k.ply"), "--method", "kernel", "--force"],
+        "denoise --method learned": ["denoise", str(noisy), str(tmp / "out-l.ply"), "--method", "learned", "--force"],
         "hash": ["hash", str(mesh)],
         "compress": ["compress", str(mesh), str(tmp / "out.jxm"), "--force"],
         "decompress": ["decompress", str(packed), str(tmp / "out-d.ply"), "--force"],

@@ -302,6 +302,13 @@ def test_the_registry_method_runs_a_model_file_and_refuses_a_bad_one(sphere, noi
     want = learned_denoising(noisy, model, graph).vertices
     got = denoise(noisy, "learned", model=str(path), graph=graph).vertices
     np.testing.assert_allclose(got, want, rtol=1e-12)
+    # an eager call runs one kept program (the weights passed in, not baked in): another model of
+    # the same shape gives its own result, and the graph built when not given changes nothing
+    other, other_path = _randomised(init_model(SMALL, 6), seed=1), tmp_path / "other.jxl"
+    save_model(other_path, other)
+    np.testing.assert_allclose(denoise(noisy, "learned", model=str(other_path)).vertices,
+                               learned_denoising(noisy, other, graph).vertices, rtol=1e-12)
+    np.testing.assert_allclose(denoise(noisy, "learned", model=str(path)).vertices, want, rtol=1e-12)
     assert METHODS["learned"].params["model"].kind == "file"
     with pytest.raises(ValueError, match="model must be a file path"):
         denoise(noisy, "learned", model=3)
@@ -317,3 +324,25 @@ def test_the_shipped_model_matches_its_record():
     assert isinstance(model, LearnedDenoiser) and record["seed"] == 0
     names = {n.split(" ")[0] for n, _ in record["training_meshes"]}
     assert not names & set(record["evaluation_meshes"]) and not names & set(record["validation_meshes"])
+
+
+def test_the_kept_program_is_stored_and_a_fresh_process_loads_it(sphere, noisy, tmp_path):
+    """learned_program keeps a model of its config's shape between processes (jaxmesh._exported): the
+    program's key is the config, not the weights, so one stored program serves two models (each
+    with its own result), and a fresh wrapper (a new process) loads it and gives the same result."""
+    from jaxmesh import _exported
+    from jaxmesh.learn.model import _stored_vertices, learned_program
+
+    graph = face_graph(sphere)
+    models = [_randomised(init_model(SMALL, 7), seed=s) for s in (0, 1)]
+    _exported.set_store(tmp_path / "exported")
+    try:
+        got = [learned_program(noisy, m, graph).vertices for m in models]
+        assert len(list((tmp_path / "exported").iterdir())) == 1
+        _stored_vertices._calls.clear()                       # as a new process finds it
+        again = learned_program(noisy, models[0], graph).vertices
+    finally:
+        _exported.set_store(None)
+    np.testing.assert_allclose(got[0], learned_denoising(noisy, models[0], graph).vertices, rtol=1e-12)
+    np.testing.assert_array_equal(again, got[0])
+    assert float(jnp.abs(got[0] - got[1]).max()) > 1e-6

@@ -205,11 +205,15 @@ _GRAPH = Param(None, "aux", "face_graph(mesh), built on the host; pass it to cal
 
 def _learned(mesh: Mesh, model: "str | os.PathLike" = "default", graph=None) -> Mesh:
     """:func:`jaxmesh.learn.learned_denoising` with the model in the file ``model`` (read
-    once per file version; "default": the shipped one)."""
-    from ..learn.model import learned_denoising
+    once per file version; "default": the shipped one); with concrete inputs on one
+    connectivity, its kept program (:func:`jaxmesh.learn.model.learned_program`)."""
+    from ..learn.model import learned_denoising, learned_program
     from ..learn.modelfile import default_model
 
-    return learned_denoising(mesh, default_model(None if model == "default" else model), graph)
+    weights = default_model(None if model == "default" else model)
+    if mesh.faces.ndim == 2 and not any(isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves(mesh)):
+        return learned_program(mesh, weights, host_built(face_graph, mesh) if graph is None else graph)
+    return learned_denoising(mesh, weights, graph)
 
 
 def _taubin_pass_band(p: dict) -> str | None:

@@ -46,6 +46,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
+from .._exported import stored_jit
 from .._private import dot, lift, one_program, safe_norm, safe_normalize
 from ..denoise._loop import iterate
 from ..denoise.bilateral_normal import joint_bilateral_normals, spatial_weights
@@ -59,7 +60,7 @@ from ..mesh import Mesh
 from ..operators import taubin_pair, umbrella
 
 __all__ = ["ModelConfig", "LearnedDenoiser", "init_model", "roughness_features", "stage_parameters",
-           "repair_parameters", "learned_denoising", "STAGE_PARAMETERS", "REPAIR_PARAMETERS",
+           "repair_parameters", "learned_denoising", "learned_program", "STAGE_PARAMETERS", "REPAIR_PARAMETERS",
            "REPAIR_ALPHA0"]
 
 #: the per-stage parameters, in the order of :attr:`LearnedDenoiser.stage_base`'s columns
@@ -314,3 +315,43 @@ def learned_denoising(mesh: Mesh, model: LearnedDenoiser, graph: FaceGraph | Non
     per_stage = jax.tree.map(lambda a: jnp.moveaxis(a, -1, 0), stage_parameters(model, z))
     x, _ = jax.lax.scan(lambda y, theta: (_stage(model, mesh, graph, y, z, theta), None), x, per_stage)
     return mesh.with_vertices(x)
+
+
+def _skeleton(config: ModelConfig):
+    """The model of ``config`` with shapes for arrays (nothing drawn), and its tree."""
+    return jax.tree_util.tree_flatten(eqx.filter_eval_shape(init_model, config))
+
+
+@stored_jit(static_argnames=("config",))
+def _stored_vertices(mesh: Mesh, weights: list, graph: FaceGraph, config: ModelConfig):
+    leaves, treedef = _skeleton(config)
+    it = iter(weights)
+    model = jax.tree_util.tree_unflatten(treedef, [next(it) if isinstance(x, jax.ShapeDtypeStruct) else x
+                                                   for x in leaves])
+    return learned_denoising(mesh, model, graph).vertices
+
+
+@eqx.filter_jit
+def _any_vertices(mesh: Mesh, model: LearnedDenoiser, graph: FaceGraph):
+    return learned_denoising(mesh, model, graph).vertices
+
+
+def learned_program(mesh: Mesh, model: LearnedDenoiser, graph: FaceGraph) -> Mesh:
+    """:func:`learned_denoising` as one compiled program kept for later calls, the weights and the
+    face graph passed in (a new model of the same shape does not compile again; a model of its
+    config's shape is also kept between processes, :mod:`jaxmesh._exported`): what an eager call
+    runs (called op by op, the stack's scan would be traced and compiled again on every call).
+
+    Arguments:
+        mesh: the noisy mesh (concrete).
+        model: the trained weights.
+        graph: its face graph (:func:`~jaxmesh.denoise.face_graph`).
+
+    Returns:
+        The denoised mesh."""
+    weights = [x for x in jax.tree_util.tree_leaves(model) if eqx.is_array(x)]
+    leaves, treedef = _skeleton(model.config)
+    if treedef == jax.tree_util.tree_structure(model) and [w.shape for w in weights] == [
+            x.shape for x in leaves if isinstance(x, jax.ShapeDtypeStruct)]:
+        return mesh.with_vertices(_stored_vertices(mesh, weights, graph, config=model.config))
+    return mesh.with_vertices(_any_vertices(mesh, model, graph))

@@ -39,8 +39,13 @@ _PLAIN = {"repair_rounds": 0, "gated": False, "tail_features": False}
 _HEADER_LIMIT = 1 << 20
 
 
+def _is_array(x) -> bool:
+    """An array leaf, or its shape and dtype alone (a template from ``eqx.filter_eval_shape``)."""
+    return eqx.is_array(x) or isinstance(x, jax.ShapeDtypeStruct)
+
+
 def _arrays(tree) -> list:
-    return [leaf for leaf in jax.tree_util.tree_leaves(tree) if eqx.is_array(leaf)]
+    return [leaf for leaf in jax.tree_util.tree_leaves(tree) if _is_array(leaf)]
 
 
 def save_model(path: str | os.PathLike, model: LearnedDenoiser, meta: dict | None = None, *,
@@ -88,7 +93,7 @@ def _read_leaves(f, template: list, path) -> list:
             a = np.load(f, allow_pickle=False)
         except (ValueError, EOFError, OSError) as e:
             raise ValueError(f"{path}: array {i} of {len(template)} is missing or damaged ({e})") from None
-        if a.shape != t.shape or a.dtype.kind != np.asarray(t).dtype.kind:
+        if a.shape != t.shape or a.dtype.kind != np.dtype(t.dtype).kind:
             raise ValueError(f"{path}: array {i} has shape {a.shape} ({a.dtype}), the config implies {t.shape}")
         if not np.isfinite(a).all():
             raise ValueError(f"{path}: array {i} holds non-finite values")
@@ -114,8 +119,7 @@ def load_model(path: str | os.PathLike, extra: Any = None) -> LearnedDenoiser | 
             raise ValueError(f"{path}: the model file's config is not a jaxmesh model config ({e})") from None
         except ValueError as e:
             raise ValueError(f"{path}: {e}") from None
-        with jax.ensure_compile_time_eval():     # concrete arrays when first read under jit
-            template = init_model(config)
+        template = eqx.filter_eval_shape(init_model, config)   # the shapes alone: no weights drawn
         arrays = _arrays(template) + _arrays(extra)
         leaves = _read_leaves(f, arrays, path)
         if f.read(1):
@@ -131,7 +135,7 @@ def load_model(path: str | os.PathLike, extra: Any = None) -> LearnedDenoiser | 
 def _fill(template, leaves: list):
     flat, treedef = jax.tree_util.tree_flatten(template)
     it = iter(leaves)
-    return jax.tree_util.tree_unflatten(treedef, [jax.numpy.asarray(next(it)) if eqx.is_array(x) else x
+    return jax.tree_util.tree_unflatten(treedef, [jax.numpy.asarray(next(it)) if _is_array(x) else x
                                                   for x in flat])
 
 
