@@ -326,6 +326,7 @@ def test_the_shipped_model_matches_its_record():
     assert not names & set(record["evaluation_meshes"]) and not names & set(record["validation_meshes"])
 
 
+@pytest.mark.slow   # ~4 s of compiles; the registry test above runs the same program by default
 def test_the_kept_program_is_stored_and_a_fresh_process_loads_it(sphere, noisy, tmp_path):
     """learned_program keeps a model of its config's shape between processes (jaxmesh._exported): the
     program's key is the config, not the weights, so one stored program serves two models (each
