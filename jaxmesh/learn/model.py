@@ -40,6 +40,7 @@ differentiable in both; the guided patch choice is piecewise constant, as in
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import equinox as eqx
 import jax
@@ -317,9 +318,11 @@ def learned_denoising(mesh: Mesh, model: LearnedDenoiser, graph: FaceGraph | Non
     return mesh.with_vertices(x)
 
 
-def _skeleton(config: ModelConfig):
-    """The model of ``config`` with shapes for arrays (nothing drawn), and its tree."""
-    return jax.tree_util.tree_flatten(eqx.filter_eval_shape(init_model, config))
+@functools.lru_cache(maxsize=8)
+def _skeleton(config: ModelConfig) -> tuple:
+    """The leaves of the model of ``config`` (shapes for arrays: nothing drawn), and its tree."""
+    leaves, treedef = jax.tree_util.tree_flatten(eqx.filter_eval_shape(init_model, config))
+    return tuple(leaves), treedef
 
 
 @stored_jit(static_argnames=("config",))
