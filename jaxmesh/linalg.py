@@ -42,6 +42,7 @@ nonsingular symmetric matrix).
 from __future__ import annotations
 
 import contextlib
+import functools
 import hashlib
 import importlib.util
 import threading
@@ -335,11 +336,11 @@ def _factor(edges: np.ndarray, diagonal: np.ndarray, values: np.ndarray, backend
     return made
 
 
-def _host_solve(edges, diagonal, edge_values, rhs, backend: str, laplacian: bool = False):
-    """The callback: batched over any leading axes that ``vmap`` added (``expand_dims``:
-    unbatched arguments carry size-1 axes there)."""
-    base = rhs.ndim          # (n,) or (n, k) before vmap
-    out_type = jax.ShapeDtypeStruct(rhs.shape, rhs.dtype)
+@functools.lru_cache(maxsize=32)
+def _solve_callback(base: int, backend: str, laplacian: bool):
+    """The host side of :func:`_host_solve` for right-hand sides of ``base`` dimensions: one
+    function per configuration, so that an eager call's program is kept (a new callback each call
+    would compile a new one)."""
 
     def host(e, d, a, r):
         e, d, a, r = (np.asarray(z) for z in (e, d, a, r))
@@ -361,4 +362,12 @@ def _host_solve(edges, diagonal, edge_values, rhs, backend: str, laplacian: bool
             out[idx] = host_solve(e[idx], d[idx], a[idx], r[idx], backend=backend, laplacian=laplacian)
         return out
 
+    return host
+
+
+def _host_solve(edges, diagonal, edge_values, rhs, backend: str, laplacian: bool = False):
+    """The callback: batched over any leading axes that ``vmap`` added (``expand_dims``:
+    unbatched arguments carry size-1 axes there)."""
+    out_type = jax.ShapeDtypeStruct(rhs.shape, rhs.dtype)
+    host = _solve_callback(rhs.ndim, backend, laplacian)     # rhs (n,) or (n, k) before vmap
     return jax.pure_callback(host, out_type, edges, diagonal, edge_values, rhs, vmap_method="expand_dims")

@@ -251,15 +251,15 @@ def _solve_eigh(edges, diag, vals, mass, *, k: int, dense_max: int, cluster_rtol
 def _eig_fn(k: int, dense_max: int, cluster_rtol: float, with_vectors: bool):
     """The custom-JVP eigensolver for one static configuration."""
 
+    def host(e, d, a, m):     # one function per configuration: an eager call's program is kept
+        w, u, b = _host_eigh(e, d, a, m, k=k, dense_max=dense_max, cluster_rtol=cluster_rtol)
+        dtype = np.asarray(d).dtype
+        return w.astype(dtype), u.astype(dtype), np.asarray(b, dtype)
+
     def primal(edges, diag, vals, mass):
         n = diag.shape[0]
         dtype = diag.dtype
         out = (jax.ShapeDtypeStruct((k,), dtype), jax.ShapeDtypeStruct((n, k), dtype), jax.ShapeDtypeStruct((), dtype))
-
-        def host(e, d, a, m):
-            w, u, b = _host_eigh(e, d, a, m, k=k, dense_max=dense_max, cluster_rtol=cluster_rtol)
-            return w.astype(dtype), u.astype(dtype), np.asarray(b, dtype)
-
         return jax.pure_callback(host, out, edges, diag, vals, mass, vmap_method="sequential")
 
     f = jax.custom_jvp(primal)

@@ -203,3 +203,29 @@ def test_a_broken_inner_solve_reaches_the_non_finite_check():
     full = solve(a, 200)
     assert full.result == lx.RESULTS.successful
     np.testing.assert_allclose(np.asarray(full.value), np.linalg.solve(a, np.asarray(b)), rtol=1e-9)
+
+
+def test_a_second_eager_call_compiles_nothing(system):
+    """The host callback is one function per configuration, so an eager solve's program is kept: a
+    second call with new values of the same shapes compiles nothing (JAX's compile events), as does a
+    second shape_dna (the host eigensolver's callback)."""
+    from jaxmesh import spectral
+
+    mesh, d, a, b = system
+    b2 = 2 * b
+    compiles = []
+
+    def listen(name, secs, **kw):
+        if name.endswith("backend_compile_duration"):
+            compiles.append(name)
+    first = linalg.mesh_solve(mesh, d, a, b)
+    dna = spectral.shape_dna(mesh, 3)
+    jax.monitoring.register_event_duration_secs_listener(listen)
+    try:
+        second = linalg.mesh_solve(mesh, d, a, b2)
+        again = spectral.shape_dna(mesh, 3)
+    finally:
+        jax.monitoring.unregister_event_duration_listener(listen)
+    assert compiles == []
+    np.testing.assert_allclose(second, 2 * first, rtol=1e-12)
+    np.testing.assert_array_equal(again, dna)
