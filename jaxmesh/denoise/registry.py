@@ -272,7 +272,8 @@ METHODS: dict[str, Method] = {
         Method("taubin", taubin_smoothing, {
             "lam": Param(0.5, "continuous", "shrinking step λ ∈ (0, 1]", (0.01, 1.0), True, domain=(0.0, 1.0),
                          closed="(]"),
-            "mu": Param(-0.53, "continuous", "inflating step μ ∈ [-1, 0); μ ≤ -λ for a low-pass filter (else a warning)",
+            "mu": Param(-0.53, "continuous",
+                        "inflating step μ ∈ [-1, 0); μ ≤ -λ for a low-pass filter (else a warning)",
                         (-1.0, -0.01), domain=(-1.0, 0.0), closed="[)"),
             "iterations": _it(10),
             "boundary": _BOUNDARY,
