@@ -20,7 +20,6 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import time
 from pathlib import Path
 
 import jax
@@ -29,7 +28,7 @@ import numpy as np
 jax.config.update("jax_enable_x64", True)
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from shared_meshes import ROOT, load  # noqa: E402
+from shared_meshes import ROOT, load, timed  # noqa: E402
 from rate_distortion import _error  # noqa: E402
 
 import jaxmesh  # noqa: E402
@@ -41,12 +40,7 @@ TARGETS = (1e-3, 2e-3, 3e-3)
 
 
 def _median_seconds(fn, repeat: int = 3) -> float:
-    times = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return float(np.median(times))
+    return float(np.median([timed(fn)[1] for _ in range(repeat)]))
 
 
 def rows_for(name: str, mesh, size) -> list[dict]:
@@ -55,9 +49,7 @@ def rows_for(name: str, mesh, size) -> list[dict]:
     for keep in KEEP:
         for bits in BITS:
             patch = None if size == "auto" else int(size)
-            t = time.perf_counter()
-            c = jaxmesh.compress.compress(mesh, keep=keep, bits=bits, patch_size=patch)
-            encode = time.perf_counter() - t
+            c, encode = timed(jaxmesh.compress.compress, mesh, keep=keep, bits=bits, patch_size=patch)
             rows.append({"mesh": name, "size": str(size), "keep": keep, "bits": bits, "bpv": c.bits_per_vertex,
                          "patches": c.stats["patches"], "labels_bpv": c.stats["section_bits_per_vertex"]["labels"],
                          "encode_s": encode, "data": c.data,
