@@ -318,6 +318,19 @@ def learned_denoising(mesh: Mesh, model: LearnedDenoiser, graph: FaceGraph | Non
     return mesh.with_vertices(x)
 
 
+def is_weight(x) -> bool:
+    """An array leaf of a model, or its shape and dtype alone (a template from ``eqx.filter_eval_shape``)."""
+    return eqx.is_array(x) or isinstance(x, jax.ShapeDtypeStruct)
+
+
+def fill_weights(template, weights):
+    """``template`` (a model, or any pytree) with its array leaves (:func:`is_weight`), in tree order,
+    replaced by ``weights``."""
+    flat, treedef = jax.tree_util.tree_flatten(template)
+    it = iter(weights)
+    return jax.tree_util.tree_unflatten(treedef, [jnp.asarray(next(it)) if is_weight(x) else x for x in flat])
+
+
 @functools.lru_cache(maxsize=8)
 def _skeleton(config: ModelConfig) -> tuple:
     """The leaves of the model of ``config`` (shapes for arrays: nothing drawn), and its tree."""
@@ -328,10 +341,7 @@ def _skeleton(config: ModelConfig) -> tuple:
 @stored_jit(static_argnames=("config",))
 def _stored_vertices(mesh: Mesh, weights: list, graph: FaceGraph, config: ModelConfig):
     leaves, treedef = _skeleton(config)
-    it = iter(weights)
-    model = jax.tree_util.tree_unflatten(treedef, [next(it) if isinstance(x, jax.ShapeDtypeStruct) else x
-                                                   for x in leaves])
-    return learned_denoising(mesh, model, graph).vertices
+    return learned_denoising(mesh, fill_weights(jax.tree_util.tree_unflatten(treedef, leaves), weights), graph).vertices
 
 
 @eqx.filter_jit

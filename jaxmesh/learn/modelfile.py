@@ -27,7 +27,7 @@ import jax
 import numpy as np
 
 from ..io import write_bytes_atomic
-from .model import LearnedDenoiser, ModelConfig, init_model
+from .model import LearnedDenoiser, ModelConfig, fill_weights, init_model, is_weight
 
 __all__ = ["save_model", "load_model", "default_model", "DEFAULT_MODEL", "file_sha256"]
 
@@ -39,13 +39,8 @@ _PLAIN = {"repair_rounds": 0, "gated": False, "tail_features": False}
 _HEADER_LIMIT = 1 << 20
 
 
-def _is_array(x) -> bool:
-    """An array leaf, or its shape and dtype alone (a template from ``eqx.filter_eval_shape``)."""
-    return eqx.is_array(x) or isinstance(x, jax.ShapeDtypeStruct)
-
-
 def _arrays(tree) -> list:
-    return [leaf for leaf in jax.tree_util.tree_leaves(tree) if _is_array(leaf)]
+    return [leaf for leaf in jax.tree_util.tree_leaves(tree) if is_weight(leaf)]
 
 
 def save_model(path: str | os.PathLike, model: LearnedDenoiser, meta: dict | None = None, *,
@@ -126,17 +121,10 @@ def load_model(path: str | os.PathLike, extra: Any = None) -> LearnedDenoiser | 
             raise ValueError(f"{path}: data after the last array (not a file this config wrote)")
     k = len(_arrays(template))
     with jax.ensure_compile_time_eval():
-        model = _fill(template, leaves[:k])
+        model = fill_weights(template, leaves[:k])
     if extra is None:
         return model
-    return model, _fill(extra, leaves[k:]), header.get("meta", {})
-
-
-def _fill(template, leaves: list):
-    flat, treedef = jax.tree_util.tree_flatten(template)
-    it = iter(leaves)
-    return jax.tree_util.tree_unflatten(treedef, [jax.numpy.asarray(next(it)) if _is_array(x) else x
-                                                  for x in flat])
+    return model, fill_weights(extra, leaves[k:]), header.get("meta", {})
 
 
 def file_sha256(path: str | os.PathLike) -> str:
