@@ -11,7 +11,7 @@ import trimesh
 import jaxmesh
 from jaxmesh import stats
 
-from conftest import shared_mesh_path
+from conftest import assert_refused, shared_mesh_path
 
 
 def as_networkx(mesh):
@@ -136,6 +136,7 @@ def test_spectrum_distance_by_hand_and_bad_arguments():
         stats.spectral_density(mesh, "signless")
     with pytest.raises(ValueError, match="moments"):
         stats.spectral_density(mesh, moments=1)
+    assert_refused(stats.spectral_density, mesh, seed=1.5, param="seed", message="seed must be an int")
     with pytest.raises(ValueError, match="ranks"):
         stats.density_quantiles(uniform, [1.5])
 

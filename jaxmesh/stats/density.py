@@ -36,6 +36,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import sparse as jsparse
+from .._exported import stored_jit
 from ..mesh import Mesh
 from ._graph import single
 
@@ -78,15 +79,17 @@ def jackson(count: int) -> np.ndarray:
     return ((count - m + 1) * np.cos(q * m) + np.sin(q * m) / np.tan(q)) / (count + 1)
 
 
-@jax.jit(static_argnames=("n", "count"))
-def _moments(rows, cols, vals, centre, half, probes, n: int, count: int):
-    """μ_0 … μ_{count−1} of Ã = (A − centre I)/half from the probes (n, R) (module docstring)."""
+@stored_jit(static_argnames=("n", "count", "probes"))
+def _moments(rows, cols, vals, centre, half, seed, n: int, count: int, probes: int):
+    """μ_0 … μ_{count−1} of Ã = (A − centre I)/half from ``probes`` Rademacher probes (n, R) drawn
+    from ``seed`` (module docstring).  The draw is part of the program: one program to keep."""
     def apply(x):                                    # Ã x, A given by its entries (rows, cols, vals)
         ax = jax.ops.segment_sum(vals[:, None] * x[cols], rows, num_segments=n)
         return (ax - centre * x) / half
 
-    norm = probes.shape[0] * probes.shape[1]
-    t0, t1 = probes, apply(probes)
+    z = jax.random.rademacher(jax.random.key(seed), (n, probes), vals.dtype)
+    norm = n * probes
+    t0, t1 = z, apply(z)
     mu0, mu1 = jnp.sum(t0 * t0) / norm, jnp.sum(t1 * t0) / norm
 
     def step(carry, _):
@@ -149,6 +152,13 @@ def largest_eigenvalue(mat, bound: float) -> float:
     return float(min(top[0], bound))
 
 
+def _seed_array(seed) -> np.ndarray:
+    """``seed`` as the integer array ``jax.random.key`` makes of it (int64 with 64-bit types on)."""
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
+        raise ValueError(f"seed must be an int, got {seed!r}")
+    return np.asarray(seed, np.int64 if jax.config.jax_enable_x64 else np.int32)
+
+
 def spectral_density(mesh: Mesh, kind: str = "combinatorial", moments: int = MOMENTS, probes: int = PROBES,
                      seed: int = 0, points: int = 2049) -> SpectralDensity:
     """The eigenvalue distribution of L = D − A (``kind="combinatorial"``) or
@@ -177,10 +187,9 @@ def spectral_density(mesh: Mesh, kind: str = "combinatorial", moments: int = MOM
     a, b = -MARGIN * top, top * (1 + MARGIN)
     coo = mat.tocoo()
     dtype = jnp.result_type(float)
-    z = jax.random.rademacher(jax.random.key(seed), (n, probes), dtype)
     mu = np.asarray(_moments(jnp.asarray(coo.row, jnp.int32), jnp.asarray(coo.col, jnp.int32),
-                             jnp.asarray(coo.data, dtype), (a + b) / 2, (b - a) / 2, z, n=n, count=int(moments)),
-                    np.float64)
+                             jnp.asarray(coo.data, dtype), (a + b) / 2, (b - a) / 2, _seed_array(seed), n=n,
+                             count=int(moments), probes=int(probes)), np.float64)
     damped = jackson(int(moments)) * mu
     theta = np.linspace(np.pi, 0.0, points)                   # λ ascending
     m = np.arange(1, int(moments))
