@@ -270,19 +270,20 @@ def _systems(mesh: Mesh, t, triangulation, *, boundary: str) -> _Systems:
                                         face_edges.reshape(-1), mesh.num_edges)
         c = segment_sum_scalars(jnp.where(edge_pair >= 0, cot_edges, 0), jnp.maximum(edge_pair, 0),
                                 pairs.shape[0])
-        clamp = False                  # interior weights are ≥ 0 on the Delaunay triangulation
     else:
         faces = mesh.faces
         area, grad = hat_gradients(face_corners(mesh))                   # (F,), (F, 3, 3)
         pairs, c = mesh.edges, 0.5 * cotangent_weights(mesh)             # (E, 2), (E,)
-        clamp = True                   # see step 1 of the module docstring
     ell = mean_edge_length(mesh)
     t = ell ** 2 if t is None else t
     mass = segment_sum_scalars(jnp.repeat(area / 3, 3), faces.reshape(-1), n)
     positive = mass > 0
     mass = filled_mass(mass)                                          # vertices without area: the mean
     e0, e1 = pairs[:, 0], pairs[:, 1]
-    heat_w = jnp.maximum(c, 0) if clamp else c
+    # step 1's clamp: on the intrinsic Delaunay triangulation only the edges it cannot flip can be
+    # negative (boundary and non-manifold edges, and every edge of a mesh whose orientation is
+    # inconsistent); a negative weight there makes u negative and reads as an underflow
+    heat_w = jnp.maximum(c, 0)
     heat_diag = mass + t * jnp.zeros(n, dtype).at[e0].add(heat_w).at[e1].add(heat_w)
     heat_off = -t * heat_w
     if boundary == "neumann":
