@@ -32,6 +32,7 @@ from jaxtyping import Array, Float, Int
 
 from .geometry import edge_lengths
 from .mesh import Mesh
+from .topology import orientation_flips
 
 __all__ = ["IntrinsicTriangulation", "intrinsic_delaunay", "intrinsic_lengths", "replay_flips",
            "flipped_length",
@@ -172,8 +173,8 @@ class _HalfEdges:
     """Mutable half-edge lists of a triangle list (Python lists: the flip loop reads and writes
     them one entry at a time): half-edge h = 3f + j runs ``origin[h]`` → ``origin[next(h)]``
     in face f, lies on edge ``edge[h]`` and has the opposite half-edge ``twin[h]`` (−1 on
-    boundary and non-manifold edges, and everywhere when the orientation is inconsistent:
-    nothing is flipped then); ``of_edge[e]`` is one half-edge of edge e."""
+    boundary and non-manifold edges, and on an edge whose two faces run it the same way);
+    ``of_edge[e]`` is one half-edge of edge e."""
 
     def __init__(self, faces: np.ndarray, face_edges: np.ndarray, num_vertices: int, num_edges: int):
         nf = faces.shape[0]
@@ -186,8 +187,8 @@ class _HalfEdges:
         pos = np.minimum(np.searchsorted(key[order], rev), len(key) - 1)
         twin = np.where(key[order][pos] == rev, order[pos], -1)
         twin[np.bincount(edge, minlength=num_edges)[edge] != 2] = -1
-        if (np.unique(key, return_counts=True)[1] > 1).any():
-            twin[:] = -1
+        _, inverse, counts = np.unique(key, return_inverse=True, return_counts=True)
+        twin[counts[inverse] > 1] = -1                # a directed edge two faces share: they disagree
         of_edge = np.empty(num_edges, np.int64)
         of_edge[edge] = np.arange(3 * nf)
         self.edge, self.origin, self.twin, self.of_edge = (x.tolist() for x in (edge, origin, twin, of_edge))
@@ -242,7 +243,11 @@ def intrinsic_delaunay(mesh: Mesh, *, tolerance: float = 1e-10, max_flips: int |
                        ) -> IntrinsicTriangulation:
     """Flip ``mesh``'s edges, in its own metric, until every interior edge is Delaunay
     (its opposite angles sum to at most π: cot α + cot β ≥ −``tolerance``).  Boundary
-    and non-manifold edges are never flipped.  Host numpy; needs concrete positions.
+    and non-manifold edges are never flipped.  Faces wound against their neighbours are
+    reversed first (:func:`~jaxmesh.topology.orientation_flips`; the returned ``faces`` keep
+    those windings), so an inconsistently oriented mesh flips as its oriented copy does; on a
+    non-orientable surface the edges whose faces still disagree are not flipped either.
+    Host numpy; needs concrete positions.
 
     Arguments:
         mesh: a single mesh.
@@ -254,8 +259,12 @@ def intrinsic_delaunay(mesh: Mesh, *, tolerance: float = 1e-10, max_flips: int |
     if mesh.vertices.ndim != 2:
         raise ValueError("intrinsic_delaunay needs a single mesh")
     faces = np.array(mesh.faces, np.int64)
-    face_edges = np.asarray(mesh.face_edges, np.int64)
+    face_edges = np.array(mesh.face_edges, np.int64)
     nf, ne = faces.shape[0], mesh.num_edges
+    # faces wound against their neighbours are reversed first (the flips need each edge's two
+    # faces to run it opposite ways; the metric does not depend on the winding)
+    reverse = orientation_flips(faces, face_edges, ne)
+    faces[reverse], face_edges[reverse] = faces[reverse][:, [0, 2, 1]], face_edges[reverse][:, [0, 2, 1]]
     # the lengths in float64 from the positions as stored, whatever the mesh's dtype: a float32 mesh
     # then flips as its float64 copy does (near-ties are not decided by float32 rounding)
     v, e = np.asarray(mesh.vertices, np.float64), np.asarray(mesh.edges)

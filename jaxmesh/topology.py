@@ -24,6 +24,7 @@ __all__ = [
     "non_manifold_vertices",
     "connected_components",
     "is_consistently_oriented",
+    "orientation_flips",
     "genus",
     "duplicate_vertices",
     "face_adjacency",
@@ -147,6 +148,53 @@ def is_consistently_oriented(mesh: Mesh) -> bool:
     m = mesh.num_vertices
     he = (f * m + f[:, [1, 2, 0]]).ravel()
     return len(np.unique(he)) == len(he)
+
+
+def orientation_flips(faces: np.ndarray, face_edges: np.ndarray, num_edges: int) -> np.ndarray:
+    """Which faces to reverse so that every edge of two faces is traversed once each way
+    wherever the surface allows it: the faces joined across their two-face edges form a
+    graph, a breadth-first spanning forest of it fixes each face's winding relative to its
+    tree's first face, and a face is reversed when the parity of the disagreeing edges on
+    its tree path is odd.  On an orientable surface every two-face edge then agrees; on a
+    non-orientable one (a Möbius strip) the edges off the forest where the windings cannot
+    agree remain.  Non-manifold and boundary edges join nothing.
+
+    Arguments:
+        faces: (F, 3) vertex indices.
+        face_edges: (F, 3) the edge opposite each corner (the numbering of ``mesh.edges``).
+        num_edges: E.
+
+    Returns:
+        (F,) bool: the faces to reverse (none for a consistently oriented mesh)."""
+    f, fe = np.asarray(faces, np.int64), np.asarray(face_edges, np.int64)
+    nf = f.shape[0]
+    edge, origin = fe[:, [2, 0, 1]].ravel(), f.ravel()        # half-edge 3i + j: corner j -> j + 1
+    two = np.flatnonzero(np.bincount(edge, minlength=num_edges)[edge] == 2)
+    order = two[np.argsort(edge[two], kind="stable")]
+    h1, h2 = order[0::2], order[1::2]
+    apart = h1 // 3 != h2 // 3
+    h1, h2 = h1[apart], h2[apart]
+    f1, f2, disagree = h1 // 3, h2 // 3, origin[h1] == origin[h2]
+    if not disagree.any():
+        return np.zeros(nf, bool)
+    # a virtual root (node nf) joined to the first face of each component: one breadth-first search
+    _, labels = _cc(sp.coo_matrix((np.ones(len(f1)), (f1, f2)), shape=(nf, nf)), directed=False)
+    roots = np.unique(labels, return_index=True)[1]
+    rows, cols = np.r_[f1, np.full(len(roots), nf)], np.r_[f2, roots]
+    graph = sp.coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(nf + 1, nf + 1)).tocsr()
+    from scipy.sparse.csgraph import breadth_first_order
+
+    _, pred = breadth_first_order(graph, nf, directed=False, return_predecessors=True)
+    parent = np.where(pred[:nf] == nf, np.arange(nf), pred[:nf])
+    # each face's disagreement with its parent, looked up by the unordered pair of faces
+    pair = np.minimum(f1, f2) * nf + np.maximum(f1, f2)
+    keys, first = np.unique(pair, return_index=True)
+    child = np.minimum(np.arange(nf), parent) * nf + np.maximum(np.arange(nf), parent)
+    at = np.minimum(np.searchsorted(keys, child), len(keys) - 1)
+    odd = np.where((parent != np.arange(nf)) & (keys[at] == child), disagree[first][at], False)
+    while (parent != parent[parent]).any():                    # pointer jumping: parity to the root
+        odd, parent = odd ^ odd[parent], parent[parent]
+    return odd
 
 
 def genus(mesh: Mesh) -> int | None:

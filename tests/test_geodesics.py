@@ -199,6 +199,48 @@ def test_heat_distances_close_to_exact_geodesics_on_thin_triangles():
         assert intrinsic < bound and intrinsic < 0.6 * own, (name, intrinsic, own)
 
 
+def test_a_mesh_wound_inconsistently_gets_the_distances_of_its_oriented_copy():
+    """A bumpy, jittered grid (thin triangles: the flips matter) with a third of its faces
+    reversed: the intrinsic triangulation makes the same flips, and the heat distances are
+    those of the consistently wound mesh (before, nothing was flipped on such a mesh, and
+    its negative weights sent the heat flow below zero)."""
+    v, f = grid_arrays(10, 8, jitter=0.35, seed=4)
+    v = np.c_[v[:, :2], 0.4 * np.sin(v[:, 0]) * np.cos(0.7 * v[:, 1])]
+    mesh = jaxmesh.Mesh.from_arrays(v, f)
+    g = f.copy()
+    r = np.random.default_rng(5).random(len(f)) < 0.33
+    g[r] = g[r][:, [0, 2, 1]]
+    messy = jaxmesh.Mesh.from_arrays(v, g)
+    tri, tri_messy = intrinsic_delaunay(mesh), intrinsic_delaunay(messy)
+    assert tri.num_flips > 10 and tri_messy.num_flips == tri.num_flips
+    np.testing.assert_allclose(np.sort(np.asarray(intrinsic_lengths(messy, tri_messy))),
+                               np.sort(np.asarray(intrinsic_lengths(mesh, tri))), rtol=1e-12)
+    src = [0, 40, 97]
+    np.testing.assert_allclose(np.asarray(heat_distances(messy, src)), np.asarray(heat_distances(mesh, src)),
+                               rtol=1e-9, atol=1e-12)
+
+
+def test_the_heat_step_is_an_m_matrix_on_a_defect_mesh():
+    """The beetle of the shared defect meshes (two components, 47 non-manifold edges, faces
+    wound inconsistently): every off-diagonal of the heat step is ≤ 0 (negative weights
+    clamped, step 1 of the module docstring), and the statistic's heat distances are
+    finite from every sampled source, close to the edge graph's (which overestimate)."""
+    from jaxmesh import geodesics as G
+
+    mesh = jaxmesh.load(shared_mesh_path("defects/beetle.ply"), dtype=np.float64)
+    tri = intrinsic_delaunay(mesh)
+    arrays = tuple(jnp.asarray(z) for z in (tri.faces, tri.face_edges, tri.flips, tri.pairs, tri.edge_pair))
+    systems = G._systems(mesh, None, arrays, boundary="average")
+    assert float(jnp.max(systems.heat_off)) <= 0.0 and float(jnp.max(systems.dir_off)) <= 0.0
+    src = jaxmesh.stats.sample_sources(mesh, 40, seed=0)
+    heat = jaxmesh.stats.heat_geodesics(mesh, src)
+    edges = jaxmesh.stats.graph_distances(mesh, src)
+    reach = np.isfinite(edges) & (edges > 0)
+    assert np.array_equal(np.isfinite(heat), np.isfinite(edges))
+    ratio = heat[reach] / edges[reach]
+    assert 0.85 < np.median(ratio) < 1.0, np.median(ratio)
+
+
 def test_heat_distances_are_differentiable_in_the_positions():
     s = trimesh.creation.icosphere(1)
     v = s.vertices * (1 + 0.1 * np.random.default_rng(0).standard_normal((len(s.vertices), 1)))

@@ -43,6 +43,73 @@ def test_inconsistent_orientation():
     assert T.is_consistently_oriented(ok)
 
 
+def _disagreeing_edges(faces, mesh) -> int:
+    """Two-face edges whose faces run them the same way (a plain loop over the faces)."""
+    seen = {}
+    for f in np.asarray(faces).tolist():
+        for a, b in ((f[0], f[1]), (f[1], f[2]), (f[2], f[0])):
+            seen.setdefault((min(a, b), max(a, b)), []).append((a, b))
+    return sum(1 for runs in seen.values() if len(runs) == 2 and runs[0] == runs[1])
+
+
+def _reoriented(mesh):
+    flips = T.orientation_flips(np.asarray(mesh.faces), np.asarray(mesh.face_edges), mesh.num_edges)
+    f = np.array(mesh.faces)
+    f[flips] = f[flips][:, [0, 2, 1]]
+    return flips, f
+
+
+def test_orientation_flips_orient_every_orientable_component():
+    """A torus and a grid, side by side, with random faces reversed: the flips make the
+    windings agree on every edge (checked by a loop and by trimesh), reversing the reversed
+    faces or their complement in each component; a consistent mesh gets none."""
+    import trimesh
+
+    v1, f1 = torus_arrays()
+    v2, f2 = grid_arrays(5, 4)
+    v, f = np.vstack([v1, v2 + 10]), np.vstack([f1, f2 + len(v1)])
+    mesh = jaxmesh.Mesh.from_arrays(v, f)
+    assert not _reoriented(mesh)[0].any()
+    reversed_ = np.random.default_rng(0).random(len(f)) < 0.3
+    g = f.copy()
+    g[reversed_] = g[reversed_][:, [0, 2, 1]]
+    messy = jaxmesh.Mesh.from_arrays(v, g)
+    assert _disagreeing_edges(g, messy) > 50 and not T.is_consistently_oriented(messy)
+    flips, fixed = _reoriented(messy)
+    assert _disagreeing_edges(fixed, messy) == 0
+    assert T.is_consistently_oriented(jaxmesh.Mesh.from_arrays(v, fixed))
+    assert trimesh.Trimesh(v, fixed, process=False).is_winding_consistent
+    for part in (slice(0, len(f1)), slice(len(f1), None)):      # per component: the reversal or its complement
+        assert (flips[part] == reversed_[part]).all() or (flips[part] != reversed_[part]).all()
+
+
+def test_orientation_flips_leave_one_edge_of_a_moebius_strip():
+    """A Möbius strip of 2n triangles has no consistent winding: whatever the input windings,
+    exactly one edge of its ring of faces is left disagreeing."""
+    n = 12
+    t = np.arange(n) * 2 * np.pi / n
+    rows = []
+    for s in (-0.3, 0.3):                                   # the strip's two edges, half-twisted
+        r = 2 + s * np.cos(t / 2)
+        rows.append(np.stack([r * np.cos(t), r * np.sin(t), s * np.sin(t / 2)], 1))
+    v = np.vstack(rows)                                    # vertex i: (i < n) lower, (i >= n) upper
+    faces = []
+    for i in range(n):
+        j = (i + 1) % n
+        a, b, c, d = i, j, n + i, n + j
+        if j == 0:                                         # past the half twist the sides swap: L_n = U_0, U_n = L_0
+            b, d = n, 0
+        faces += [[a, b, c], [c, b, d]]
+    mesh = jaxmesh.Mesh.from_arrays(v, np.array(faces))
+    for seed in range(3):
+        g = np.array(faces)
+        r = np.random.default_rng(seed).random(len(g)) < 0.5
+        g[r] = g[r][:, [0, 2, 1]]
+        messy = jaxmesh.Mesh.from_arrays(v, g)
+        _, fixed = _reoriented(messy)
+        assert _disagreeing_edges(fixed, messy) == 1
+
+
 def manifest_rows():
     path = SHARED_MESHES / "MANIFEST.md"
     if not path.is_file():
