@@ -221,14 +221,16 @@ def test_a_mesh_wound_inconsistently_gets_the_distances_of_its_oriented_copy():
 
 
 def test_the_heat_step_is_an_m_matrix_on_a_defect_mesh():
-    """The beetle of the shared defect meshes (two components, 47 non-manifold edges, faces
-    wound inconsistently): every off-diagonal of the heat step is ≤ 0 (negative weights
+    """The beetle of the shared defect meshes (two components, 47 non-manifold edges, on which
+    two faces run the same way): the triangulation is flipped (it was not at all, with any
+    directed edge used twice), every off-diagonal of the heat step is ≤ 0 (negative weights
     clamped, step 1 of the module docstring), and the statistic's heat distances are
     finite from every sampled source, close to the edge graph's (which overestimate)."""
     from jaxmesh import geodesics as G
 
     mesh = jaxmesh.load(shared_mesh_path("defects/beetle.ply"), dtype=np.float64)
     tri = intrinsic_delaunay(mesh)
+    assert tri.num_flips > 500
     arrays = tuple(jnp.asarray(z) for z in (tri.faces, tri.face_edges, tri.flips, tri.pairs, tri.edge_pair))
     systems = G._systems(mesh, None, arrays, boundary="average")
     assert float(jnp.max(systems.heat_off)) <= 0.0 and float(jnp.max(systems.dir_off)) <= 0.0
