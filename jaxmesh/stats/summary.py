@@ -69,17 +69,9 @@ def mesh_statistics(mesh: Mesh, sources: int | None = None, seed: int = 0, knn: 
     elif knn > n - 1 and "knn" in geodesics:
         warnings.warn(f"knn={knn} is more than the other {n - 1} vertices: the kNN graph is complete",
                       MeshWarning, stacklevel=2)
-    say("degree, assortativity and clustering")
-    graph = graph_view(mesh)      # the host edge graph, once for every statistic below
-    ks, pk = degree_distribution(graph)
-    knn_v = neighbor_connectivity(graph)
-    kk, knn_k = assortativity_function(graph, knn_v)
-    c = clustering(graph)
-    ct = thesis_clustering(graph)
-    ck, c_k = clustering_by_degree(graph, c)
-    _, ct_k = clustering_by_degree(graph, ct)
     src = sample_sources(mesh, sources, seed)
-    dist, spec = _geodesics_and_spectra(mesh, src, geodesics, knn, (spectrum_k, dense_max), say)
+    dist, spec, parts = _concurrent_parts(mesh, src, geodesics, knn, (spectrum_k, dense_max), say)
+    graph, c, ct = parts["graph"], parts["clustering"], parts["thesis_clustering"]
     d = graph.degree
     connected = d > 0
     differ = connected & ~np.isclose(c, np.nan_to_num(ct, nan=-1))
@@ -98,32 +90,47 @@ def mesh_statistics(mesh: Mesh, sources: int | None = None, seed: int = 0, knn: 
     }
     for g, h in dist.items():
         summary[f"geodesic_{g}_mean"], summary[f"geodesic_{g}_std"] = h.mean, h.std
-    return {"summary": summary, "degree": (ks, pk), "knn": (kk, knn_k), "clustering": (ck, c_k),
-            "thesis_clustering": (ck, ct_k), "spectrum": spec, "geodesics": dist, "sources": src}
+    return {"summary": summary, "degree": parts["degree"], "knn": parts["knn"], "clustering": parts["clustering_k"],
+            "thesis_clustering": parts["thesis_clustering_k"], "spectrum": spec, "geodesics": dist, "sources": src}
 
 
-def _geodesics_and_spectra(mesh, src, geodesics, knn, spectra, say) -> tuple[dict, dict]:
-    """Each geodesic method's histogram from ``src`` and both Laplacian spectra
-    (``spectra``: :func:`laplacian_spectrum`'s ``k`` and ``dense_max``)."""
+def _graph_statistics(mesh) -> dict:
+    """The edge graph's statistics: degrees, K_nn, both clusterings and their C(k)."""
+    graph = graph_view(mesh)      # the host edge graph, once for every statistic below
+    knn_v = neighbor_connectivity(graph)
+    c, ct = clustering(graph), thesis_clustering(graph)
+    ck, c_k = clustering_by_degree(graph, c)
+    _, ct_k = clustering_by_degree(graph, ct)
+    return {"graph": graph, "degree": degree_distribution(graph), "knn": assortativity_function(graph, knn_v),
+            "clustering": c, "thesis_clustering": ct, "clustering_k": (ck, c_k), "thesis_clustering_k": (ck, ct_k)}
+
+
+def _concurrent_parts(mesh, src, geodesics, knn, spectra, say) -> tuple[dict, dict, dict]:
+    """Each geodesic method's histogram from ``src``, both Laplacian spectra (``spectra``:
+    :func:`laplacian_spectrum`'s ``k`` and ``dense_max``) and :func:`_graph_statistics`."""
     def job(task):
         what, name = task
         if what == "geodesics":
             say(f"{name} geodesics from {len(src)} sources")
             return distance_histogram(mesh, src, name, knn)
+        if what == "graph":
+            say("degree, assortativity and clustering")
+            return _graph_statistics(mesh)
         say(f"{name} Laplacian spectrum")
         return laplacian_spectrum(mesh, name, *spectra)
 
-    # on a small mesh the geodesics and spectra run beside each other on the cores, the heat method
-    # (the longest) first: the graph searches hold Python's lock, the compiled programs do not.
-    # On a large one, one after the other: side by side their working memory adds up
+    # on a small mesh the parts run beside each other on the cores, the heat method (the longest)
+    # first and the graph's statistics (the shortest) last: the graph searches hold Python's lock,
+    # the compiled programs do not.  On a large one, one after the other: side by side their
+    # working memory adds up
     tasks = ([("geodesics", g) for g in geodesics if g == "heat"]
              + [("spectrum", kind) for kind in ("combinatorial", "normalized")]
-             + [("geodesics", g) for g in geodesics if g != "heat"])
+             + [("geodesics", g) for g in geodesics if g != "heat"] + [("graph", None)])
     spread = (concurrent_map if mesh.num_vertices <= CONCURRENT_VERTICES else
               (lambda fn, items: [fn(x) for x in items]))
     done = dict(zip(tasks, spread(job, tasks)))
     return ({g: done["geodesics", g] for g in geodesics},
-            {kind: done["spectrum", kind] for kind in ("combinatorial", "normalized")})
+            {kind: done["spectrum", kind] for kind in ("combinatorial", "normalized")}, done["graph", None])
 
 
 def plot_statistics(mesh: Mesh, stats: dict, title: str = "", path=None, up: str = "y"):
