@@ -9,7 +9,8 @@ two-step smoothing (the only packaged feature-preserving filter) in the same run
   median of --repeat; per pass = (time with 20 passes − time with 0 passes) / 20;
 * PyMeshLab ``apply_coord_two_steps_smoothing`` (20 normal passes and 20 vertex
   passes), if pymeshlab is installed (``pip install '.[bench]'``);
-* ``l0`` (40 half-quadratic steps) on the bunny;
+* ``l0`` (40 half-quadratic steps) on spot and the bunny, its p-steps by sparse Cholesky
+  factorizations (the default) and by CG, with the largest difference between the two;
 * guided filtering's patch inconsistency on the rings split into width tiers (the face
   graph's ``tiers``, what the filter runs) against every ring padded to the widest (one
   tier), on the bunny and on a simplified bunny (``fast_simplification``, irregular
@@ -73,6 +74,19 @@ def simplified(mesh, keep: float = 0.5):
     return jaxmesh.Mesh.from_arrays(t.vertices, t.faces)
 
 
+def l0_table(bunny) -> None:
+    """L0 (40 steps, compiled, one warm run each) with each p-step solver, and how far apart they land."""
+    print("\nl0, 40 half-quadratic steps (compiled, warm), seconds")
+    print("| mesh | vertices | sparse Cholesky (default) | CG | CG / Cholesky | largest difference (unit diagonal) |")
+    print("|---|---|---|---|---|---|")
+    for label, mesh in (("spot", jaxmesh.data.load_sample("spot", dtype=np.float64)), ("bunny", bunny)):
+        noisy = jaxmesh.add_noise(jaxmesh.normalize(mesh), 0.2, 0, along_normals=True)
+        direct, cg = (jaxmesh_time("l0", noisy, 1, solver=s) for s in ("cholesky", "cg"))
+        gap = float(np.max(np.abs(np.asarray(METHODS["l0"](noisy).vertices)
+                                  - np.asarray(METHODS["l0"](noisy, solver="cg").vertices))))
+        print(f"| {label} | {noisy.num_vertices} | {direct:.2f} | {cg:.2f} | {cg / direct:.1f}x | {gap:.1e} |")
+
+
 def pymeshlab_time(noisy, repeat: int):
     try:
         import pymeshlab
@@ -92,8 +106,11 @@ def main() -> None:
     ap.add_argument("--big", action="store_true")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--tiers-only", action="store_true", help="only the patch-inconsistency table")
+    ap.add_argument("--l0-only", action="store_true", help="only the L0 table")
     args = ap.parse_args()
     bunny = jaxmesh.data.load_sample("bunny", dtype=np.float64)
+    if args.l0_only:
+        return l0_table(bunny)
     meshes = [] if args.tiers_only else [("bunny", bunny)]
     if args.big and not args.tiers_only:
         t = trimesh.Trimesh(np.asarray(bunny.vertices), np.asarray(bunny.faces), process=False)
@@ -115,8 +132,8 @@ def main() -> None:
         else:
             print(f"  PyMeshLab two-step, 20 passes + 20 updates {peer:7.2f} s; ratios jaxmesh / PyMeshLab: "
                   + ", ".join(f"{k} {v / peer:.2f}x" for k, v in times.items()))
-        if label == "bunny":
-            print(f"  jaxmesh l0 (40 steps) {jaxmesh_time('l0', noisy, 1):7.2f} s")
+    if not args.tiers_only:
+        l0_table(bunny)
     print("\nguided filtering's patch inconsistency, ms per call (median of 5 x --repeat)")
     print("| mesh | faces | widest ring | tiers | tiered | widest ring for all | padded / tiered |")
     print("|---|---|---|---|---|---|---|")

@@ -113,7 +113,9 @@ def sparse_solve(
     ``diagonal``, ``edge_values`` and ``b`` (forward and reverse), jittable and vmappable.
 
     Arguments:
-        edges: undirected edges (i, j), (E, 2); each pair at most once.
+        edges: undirected pairs (i, j), (E, 2); a pair listed more than once adds up its
+            values (the matrix is the sum, in the solve, the matvec and the derivatives), and a
+            pair (i, i) adds twice its value to the diagonal.
         diagonal: d, (n,).
         edge_values: a, one per edge, (E,).
         b: right-hand sides, (n,) or (n, k).

@@ -2,6 +2,7 @@
 and the shared vertex update against plain numpy loops written from the papers;
 the face graph against brute force; the blind chooser's argument checks."""
 
+import inspect
 import itertools
 import json
 
@@ -318,11 +319,14 @@ def np_l0(v, f, edges, lam_mult, alpha_mult, iterations):
     return x
 
 
-def test_l0_matches_a_direct_solve_reference(box):
+@pytest.mark.parametrize("solver, atol", [("cholesky", 1e-10), ("cg", 2e-6)])   # CG: a relative residual of 1e-5
+def test_l0_matches_a_direct_solve_reference(box, solver, atol):
     v, f = np.asarray(box.vertices), np.asarray(box.faces)
     want = np_l0(v, f, np.asarray(box.edges), 10.0, 1.0, 6)
-    got = l0_denoising(box, 10.0, 1.0, iterations=6)
-    np.testing.assert_allclose(got.vertices, want, atol=2e-6)   # CG to a relative residual of 1e-4
+    got = l0_denoising(box, 10.0, 1.0, iterations=6, solver=solver)
+    np.testing.assert_allclose(got.vertices, want, atol=atol)
+    with pytest.raises(ValueError, match="solver must be"):
+        inspect.unwrap(l0_denoising)(box, solver="lu")
 
 
 def test_choose_denoiser_refuses_bad_arguments(sphere):

@@ -324,6 +324,8 @@ METHODS: dict[str, Method] = {
                          (0.05, 20.0), True),
             "alpha": Param(1.0, "continuous", "regulariser weight, in units of 0.1 γ̄", (0.01, 100.0), True),
             "iterations": _it(40, "half-quadratic steps (β from 1e-3 to 1e3)"),
+            "solver": Param("cholesky", "choice", "linear solver of each step: a sparse Cholesky factorization "
+                            "(jaxmesh.linalg) or matrix-free CG", choices=("cholesky", "cg")),
             "graph": _GRAPH,
         }, "L0 minimization of the edge operator (feature preserving)", "He & Schaefer 2013"),
         Method("impulse_repair", impulse_repair, {
