@@ -281,8 +281,8 @@ def _systems(mesh: Mesh, t, triangulation, *, boundary: str) -> _Systems:
     mass = filled_mass(mass)                                          # vertices without area: the mean
     e0, e1 = pairs[:, 0], pairs[:, 1]
     # step 1's clamp: on the intrinsic Delaunay triangulation only the edges it cannot flip can be
-    # negative (boundary and non-manifold edges, and every edge of a mesh whose orientation is
-    # inconsistent); a negative weight there makes u negative and reads as an underflow
+    # negative (boundary and non-manifold edges, and edges whose two faces run them the same way);
+    # a negative weight there can make u negative, which reads as an underflow
     heat_w = jnp.maximum(c, 0)
     heat_diag = mass + t * jnp.zeros(n, dtype).at[e0].add(heat_w).at[e1].add(heat_w)
     heat_off = -t * heat_w

@@ -13,9 +13,8 @@ by half-quadratic splitting, alternating two exact sub-problems while β grows:
   :func:`jaxmesh.linalg.sparse_solve`, on the pattern of the edges' four-vertex
   stencils) or by conjugate gradients on the device (``solver="cg"``: ``lineax.CG``,
   Jacobi-preconditioned, warm-started); both differentiate implicitly.  As β grows
-  the system's condition number grows with it and CG needs hundreds of steps a
-  solve: on spot the factorizations are 21× faster, on the 35k bunny 2.1×, the two
-  within 10⁻¹⁰ of each other (``benchmarks/bench_feature.py --l0-only``).
+  the system's condition number grows with it, and CG's step count with it (the
+  denoising guide compares the two).
 
 **The edge operator D.**  For an interior edge e = (p₁, p₃) with opposite
 vertices p₂ (face p₁p₂p₃, area S₁₂₃) and p₄ (face p₁p₃p₄, area S₁₃₄), let
