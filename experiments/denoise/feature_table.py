@@ -143,8 +143,7 @@ def table(rows: list[dict], flags: str = "") -> str:
              "σ in mean edge lengths ℓ̄; seed 0 unless stated.", "",
              "*bilateral_local*: bilateral normal filtering as the local iterative scheme (one normal pass, "
              "five vertex updates per iteration; a σ_s × σ_r grid × every count up to 16). "
-             "'–': not run (the σ ≥ 0.5ℓ̄ cells leave out L0, the slowest oracle; their best oracle is over the "
-             "others).", "",
+             "'–': not run (`--oracles` left it out; the best oracle is over the others).", "",
              "| mesh | σ | noise | noisy | " + " | ".join(ORACLE) + " | blind auto (choice) "
              "| auto / best oracle | auto < taubin |",
              "|---" * (7 + len(ORACLE)) + "|"]
@@ -189,7 +188,10 @@ def main() -> None:
     ap.add_argument("--blind-only", action="store_true",
                     help="recompute the blind column of the saved cells (after a change to the chooser)")
     ap.add_argument("--oracle-only", nargs="*", default=[], metavar="METHOD",
-                    help="recompute these oracle columns of the saved cells (after a change to the tuner)")
+                    help="recompute these oracle columns of the saved cells of --meshes (after a change to the "
+                         "tuner)")
+    ap.add_argument("--missing", action="store_true",
+                    help="with --oracle-only: only the cells that do not have the column yet")
     ap.add_argument("--draws", type=int, default=2,
                     help="the blind choice's recorruptions (default 2, the library's; other values read the saved "
                          "cells and write feature_table_draws{N}.{json,md}, with --blind-only)")
@@ -238,9 +240,12 @@ def main() -> None:
                   f"{r['blind']['normal_deg']:.2f}", flush=True)
             path.write_text(json.dumps(done, indent=1))
     for r in done["cells"] if args.oracle_only else []:
+        todo = [m for m in args.oracle_only if not (args.missing and m in r["oracle"])]
+        if r["mesh"] not in args.meshes or not todo:
+            continue
         clean = jaxmesh.normalize(load_shared(r["mesh"]))
         noisy = jaxmesh.add_noise(clean, r["sigma"], jax.random.PRNGKey(r["seed"]), along_normals=r["model"] == "normal")
-        for m in args.oracle_only:
+        for m in todo:
             before = r["oracle"].get(m, {}).get("normal_deg", float("nan"))
             r["oracle"][m] = oracle(m, clean, noisy)
             print(f"{r['mesh']} {r['sigma']} {r['model']}: oracle {m} {before:.2f} -> {r['oracle'][m]['normal_deg']:.2f}",
