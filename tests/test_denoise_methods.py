@@ -21,7 +21,7 @@ SCALE_FREE = [n for n in NAMES if n != "kernel"]  # λ of the kernel flow is a s
 # methods whose results agree with a reference to a solver's tolerance, not to rounding (none:
 # L0's default p-step is a direct solve)
 SOLVER_ATOL: dict[str, float] = {}
-HEAVY_ON_SPOT: tuple[str, ...] = ()   # methods too slow for the default run on the 2.9k-vertex spot
+HEAVY_ON_SPOT = ("l0",)   # 40 factorizations on the 2.9k-vertex spot (4.5 s): -m slow
 # the learned stack's jit/vmap and finite-difference checks run by default in tests/test_learn.py
 # (on small random models); here, on the shipped model, they run with -m slow
 LEARN_COVERED = [pytest.param(n, marks=pytest.mark.slow) if n == "learned" else n for n in NAMES]
