@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.sparse.csgraph import breadth_first_order
 from scipy.sparse.csgraph import connected_components as _cc
 
 from ._exported import stored_jit
@@ -182,8 +183,6 @@ def orientation_flips(faces: np.ndarray, face_edges: np.ndarray, num_edges: int)
     roots = np.unique(labels, return_index=True)[1]
     rows, cols = np.r_[f1, np.full(len(roots), nf)], np.r_[f2, roots]
     graph = sp.coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(nf + 1, nf + 1)).tocsr()
-    from scipy.sparse.csgraph import breadth_first_order
-
     _, pred = breadth_first_order(graph, nf, directed=False, return_predecessors=True)
     parent = np.where(pred[:nf] == nf, np.arange(nf), pred[:nf])
     # each face's disagreement with its parent, looked up by the unordered pair of faces

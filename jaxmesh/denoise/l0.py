@@ -119,15 +119,36 @@ def _squares(idx, coef, num_vertices: int):
 _PAIR_K, _PAIR_L = (0, 0, 0, 1, 1, 2), (1, 2, 3, 2, 3, 3)
 
 
-def _direct_solve(idx, coef, r_coef, alpha_k, beta, diag, rhs):
-    """(I + α RᵀR + β DᵀD) p = rhs by a sparse factorization on the host
-    (:func:`jaxmesh.linalg.sparse_solve`): the matrix's off-diagonal entries are the stencils'
-    pairs, each stencil adding α r_k r_l + β c_k c_l to the pair (idx_k, idx_l) (a pair that
-    several stencils share is summed, on both sides of the solve)."""
-    k, l = jnp.asarray(_PAIR_K), jnp.asarray(_PAIR_L)
-    pairs = jnp.stack([idx[:, k], idx[:, l]], axis=-1).reshape(-1, 2)
-    values = (alpha_k * r_coef[:, k] * r_coef[:, l] + beta * coef[:, k] * coef[:, l]).reshape(-1)
-    return sparse_solve(pairs, diag, values, rhs)
+def _stencil_pairs(idx):
+    """The vertex pairs (idx_k, idx_l) of every stencil, (6E, 2): the off-diagonal pattern of
+    RᵀR and DᵀD (a pair that several stencils share is listed once per stencil, and
+    :func:`jaxmesh.linalg.sparse_solve` sums it)."""
+    return jnp.stack([idx[:, jnp.asarray(_PAIR_K)], idx[:, jnp.asarray(_PAIR_L)]], axis=-1).reshape(-1, 2)
+
+
+def _pair_products(coef):
+    """c_k c_l for every stencil pair of :func:`_stencil_pairs`, (6E,): the entries they add."""
+    return (coef[:, jnp.asarray(_PAIR_K)] * coef[:, jnp.asarray(_PAIR_L)]).reshape(-1)
+
+
+def _cg_solve(idx, coef, r_idx, r_coef, alpha_k, beta, diag, rhs, start, cg):
+    """(I + α RᵀR + β DᵀD) p = rhs by matrix-free CG from ``start``, Jacobi-preconditioned by
+    ``diag`` (the start and the preconditioner change the path, not the solution: no gradient
+    through them)."""
+    nv = rhs.shape[0]
+
+    def matvec(y):
+        dy = _apply_t(idx, coef, _apply(idx, coef, y), nv)
+        ry = _apply_t(r_idx, r_coef, _apply(r_idx, r_coef, y), nv)
+        return y + alpha_k * ry + beta * dy
+
+    op = lx.FunctionLinearOperator(matvec, jax.ShapeDtypeStruct(rhs.shape, rhs.dtype),
+                                   tags=lx.positive_semidefinite_tag)
+    pre = lx.TaggedLinearOperator(
+        lx.DiagonalLinearOperator(jnp.broadcast_to(1 / jax.lax.stop_gradient(diag)[:, None], rhs.shape)),
+        lx.positive_semidefinite_tag)
+    options = {"y0": jax.lax.stop_gradient(start), "preconditioner": pre}
+    return lx.linear_solve(op, rhs, cg, options=options, throw=False).value
 
 
 def mean_dihedral_angle(mesh: Mesh, graph: FaceGraph) -> Float[Array, "*batch"]:
@@ -156,8 +177,9 @@ def _l0_single(mesh: Mesh, graph: FaceGraph, p_star, lam, alpha, iterations: int
     ratio = (BETA_END / BETA_START) ** (1.0 / max(iterations, 1))
     r_idx = edge_operator(mesh, graph, p_star)[0]
     r_coef = jnp.where(graph.edge_mask[:, None], jnp.asarray(_R_COEF, p_star.dtype), 0)
-    rtol = 1e-5 if p_star.dtype == jnp.float64 else 1e-5
-    cg = lx.CG(rtol=rtol, atol=0.0, max_steps=1000)
+    # what every step shares: the stencils (they depend on the connectivity alone) and R's part
+    r_squares, pairs, r_products = _squares(r_idx, r_coef, nv), _stencil_pairs(r_idx), _pair_products(r_coef)
+    cg = lx.CG(rtol=1e-5, atol=0.0, max_steps=1000)
 
     def step(k, p):
         beta = BETA_START * ratio ** (k + 1).astype(p.dtype)
@@ -166,25 +188,11 @@ def _l0_single(mesh: Mesh, graph: FaceGraph, p_star, lam, alpha, iterations: int
         dp = _apply(idx, coef, p)
         keep = jax.lax.stop_gradient(jnp.sum(dp * dp, axis=-1) * beta >= lam_abs)
         delta = jnp.where(keep[:, None], dp, 0)
-
-        def matvec(y):
-            dy = _apply_t(idx, coef, _apply(idx, coef, y), nv)
-            ry = _apply_t(r_idx, r_coef, _apply(r_idx, r_coef, y), nv)
-            return y + alpha_k * ry + beta * dy
-
-        op = lx.FunctionLinearOperator(matvec, jax.ShapeDtypeStruct(p.shape, p.dtype),
-                                       tags=lx.positive_semidefinite_tag)
         rhs = p_star + beta * _apply_t(idx, coef, delta, nv)
-        diag = 1 + alpha_k * _squares(r_idx, r_coef, nv) + beta * _squares(idx, coef, nv)
+        diag = 1 + alpha_k * r_squares + beta * _squares(idx, coef, nv)      # of I + α RᵀR + β DᵀD
         if solver == "cholesky":
-            return _direct_solve(idx, coef, r_coef, alpha_k, beta, diag, rhs)
-        # Jacobi preconditioner: the diagonal of I + α RᵀR + β DᵀD
-        # (the start and the preconditioner change the path, not the solution: no gradient through them)
-        diag = jax.lax.stop_gradient(diag)
-        pre = lx.TaggedLinearOperator(lx.DiagonalLinearOperator(jnp.broadcast_to(1 / diag[:, None], p.shape)),
-                                      lx.positive_semidefinite_tag)
-        options = {"y0": jax.lax.stop_gradient(p), "preconditioner": pre}
-        return lx.linear_solve(op, rhs, cg, options=options, throw=False).value
+            return sparse_solve(pairs, diag, alpha_k * r_products + beta * _pair_products(coef), rhs)
+        return _cg_solve(idx, coef, r_idx, r_coef, alpha_k, beta, diag, rhs, p, cg)
 
     return iterate(step, p_star, iterations, indexed=True)
 
