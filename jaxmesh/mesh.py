@@ -13,7 +13,6 @@ from __future__ import annotations
 import dataclasses
 import warnings
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -215,8 +214,13 @@ def zero_area_faces(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return cross <= eps * scale
 
 
-class Mesh(eqx.Module):
-    """An immutable triangle mesh.
+@dataclasses.dataclass(frozen=True, eq=False, repr=False)
+class Mesh:
+    """An immutable triangle mesh: a frozen dataclass registered as a JAX pytree whose
+    leaves are its eight arrays, in the order below (so ``jax.jit``, ``jax.vmap``,
+    ``equinox``'s filters and ``eqx.tree_at`` take it as they take any pytree; rebuilding
+    it from leaves does not run ``__init__``, so any leaves will do: ``vmap`` axes,
+    ``ShapeDtypeStruct`` s, None).
 
     Attributes (all JAX arrays; leading batch dimensions are allowed on
     ``vertices`` only, e.g. ``(B, V, 3)`` for B noisy copies of one mesh):
@@ -344,9 +348,48 @@ class Mesh(eqx.Module):
             np.asarray(self.vertices, dtype=np.float64), np.asarray(self.faces), process=False
         )
 
+    def __eq__(self, other: object) -> bool:
+        """True if ``other`` is a Mesh of the same tree whose leaves are equal: arrays of the
+        same shape, dtype and values, other leaves by ``==`` (traced arrays only to themselves)."""
+        if not isinstance(other, Mesh):
+            return NotImplemented
+        mine, tree = jax.tree_util.tree_flatten(self)
+        theirs, other_tree = jax.tree_util.tree_flatten(other)
+        return tree == other_tree and all(_leaf_equal(a, b) for a, b in zip(mine, theirs))
+
+    __hash__ = None    # mutable arrays inside: unhashable, as an array is
+
     def __repr__(self) -> str:  # short: the default would print every array
         batch = f", batch={self.batch_shape}" if self.batch_shape else ""
         return (
             f"Mesh(V={self.num_vertices}, F={self.num_faces}, E={self.num_edges}, "
             f"dtype={self.dtype}{batch})"
         )
+
+
+def _leaf_equal(a, b) -> bool:
+    if a is b:
+        return True
+    if isinstance(a, jax.core.Tracer) or isinstance(b, jax.core.Tracer):
+        return False
+    if isinstance(a, (np.ndarray, jax.Array)) or isinstance(b, (np.ndarray, jax.Array)):
+        a, b = np.asarray(a), np.asarray(b)
+        return a.shape == b.shape and a.dtype == b.dtype and bool(np.array_equal(a, b))
+    return bool(a == b)
+
+
+_FIELDS = tuple(f.name for f in dataclasses.fields(Mesh))
+
+
+def _unflatten(_, leaves) -> Mesh:
+    """A Mesh from its leaves, whatever they are (``__init__`` is not run: JAX passes
+    leaves that are not arrays, as axes or shapes)."""
+    mesh = object.__new__(Mesh)
+    for name, leaf in zip(_FIELDS, leaves, strict=True):
+        object.__setattr__(mesh, name, leaf)
+    return mesh
+
+
+jax.tree_util.register_pytree_with_keys(
+    Mesh, lambda m: (tuple((jax.tree_util.GetAttrKey(n), getattr(m, n)) for n in _FIELDS), None), _unflatten,
+    flatten_func=lambda m: (tuple(getattr(m, n) for n in _FIELDS), None))

@@ -71,6 +71,40 @@ def test_mesh_is_an_immutable_pytree_and_jits_without_retracing(tetra):
     assert eqx.is_array(tetra.vertices)
 
 
+def test_mesh_pytree_takes_any_leaves_and_compares_by_value(tetra):
+    """Rebuilt from non-array leaves (vmap axes, shapes) without running ``__init__``; its key
+    paths name the fields; equinox's tree tools take it; == compares shapes, dtypes and values."""
+    axes = jax.tree_util.tree_map_with_path(lambda p, _: 0 if jax.tree_util.keystr(p) == ".vertices" else None, tetra)
+    batch = tetra.with_vertices(jnp.stack([tetra.vertices, 2 * tetra.vertices]))
+    areas = jax.vmap(lambda m: jaxmesh.face_areas(m), in_axes=(axes,))(batch)
+    np.testing.assert_allclose(areas[1], 4 * areas[0])
+    shapes = jax.eval_shape(lambda m: m, tetra)
+    assert isinstance(shapes, jaxmesh.Mesh) and shapes.faces.shape == tetra.faces.shape
+    paths = [jax.tree_util.keystr(p) for p, _ in jax.tree_util.tree_leaves_with_path(tetra)]
+    assert paths == [".vertices", ".faces", ".edges", ".face_edges", ".src", ".dst", ".edge_of", ".degree"]
+    moved = eqx.tree_at(lambda m: m.vertices, tetra, tetra.vertices + 1.0)
+    assert isinstance(moved, jaxmesh.Mesh) and moved.same_connectivity(tetra)
+    np.testing.assert_allclose(eqx.filter_jit(jaxmesh.face_areas)(moved), jaxmesh.face_areas(tetra))
+    copy = jaxmesh.Mesh.from_arrays(np.asarray(tetra.vertices), np.asarray(tetra.faces))
+    assert copy == tetra and copy is not tetra and not (copy != tetra)
+    assert moved != tetra and tetra.astype(jnp.float32) != tetra and tetra != "a mesh"
+    assert jax.tree_util.tree_map(lambda a: a.shape, copy) == jax.tree_util.tree_map(lambda a: a.shape, tetra)
+    with pytest.raises(TypeError, match="unhashable"):
+        hash(tetra)
+
+
+def test_the_mesh_and_the_commands_that_never_train_do_not_import_equinox():
+    """equinox (about 0.15 s of import) is for the learned and tuned denoisers only."""
+    import subprocess
+    import sys
+
+    code = ("import sys, jaxmesh, jaxmesh.cli; jaxmesh.data.load_sample('spot'); "
+            "jaxmesh.cli.build_parser(('info', 'stats', 'hash', 'compress', 'convert', 'noise')); "
+            "assert 'equinox' not in sys.modules, [m for m in sys.modules if 'jaxmesh' in m]")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+
+
 def test_dtype_follows_input(tetra):
     m32 = tetra.astype(jnp.float32)
     assert jaxmesh.face_areas(m32).dtype == jnp.float32
