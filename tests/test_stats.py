@@ -107,6 +107,47 @@ def test_spectral_density_moments_are_the_exact_spectrums_chebyshev_moments():
     assert g[0] == pytest.approx(1.0) and np.all(np.diff(g) <= 1e-15) and abs(g[-1]) < 1e-3
 
 
+def _cone(sides: int) -> jaxmesh.Mesh:
+    """A closed double cone: two apexes of degree ``sides`` over a ring of ``sides`` vertices."""
+    angle = 2 * np.pi * np.arange(sides) / sides
+    v = np.r_[np.c_[np.cos(angle), np.sin(angle), np.zeros(sides)], [[0, 0, 1], [0, 0, -1]]]
+    i, j = np.arange(sides), (np.arange(sides) + 1) % sides
+    f = np.r_[np.c_[i, j, np.full(sides, sides)], np.c_[j, i, np.full(sides, sides + 1)]]
+    return jaxmesh.Mesh.from_arrays(v, f)
+
+
+def test_the_row_table_products_equal_scipys_also_past_its_width():
+    """The padded table plus the leftover triples multiply as the sparse matrix does, for widths
+    below, at and above the longest row (the cone's apexes: 40 entries and their diagonal)."""
+    from jaxmesh.stats.density import _row_table, laplacian_of_kind
+
+    mat, _ = laplacian_of_kind(_cone(40), "normalized")
+    x = np.random.default_rng(0).normal(size=(mat.shape[0], 3))
+    for width in (1, 3, 16, 41, 100):
+        (columns, values), (rows, cols, vals) = _row_table(mat, width)
+        past = np.maximum(np.diff(mat.indptr) - width, 0).sum()        # apexes 41 entries, ring vertices 5
+        assert columns.shape[1] == min(width, 41) and len(vals) == past and (past > 0) == (width < 41)
+        product = np.einsum("nk,nkr->nr", values, x[columns])
+        np.add.at(product, rows, vals[:, None] * x[cols])
+        np.testing.assert_allclose(product, mat @ x, atol=1e-13)
+
+
+def test_spectral_density_of_a_mesh_with_rows_past_the_table():
+    """A vertex of degree 40 (past ``ROW_WIDTH``): the moments are still the exact spectrum's."""
+    from jaxmesh.stats.density import ROW_WIDTH, jackson
+
+    mesh = _cone(40)
+    assert int(np.max(mesh.degree)) + 1 > ROW_WIDTH
+    n, probes = mesh.num_vertices, 512
+    for kind in ("combinatorial", "normalized"):
+        _, lam = stats.laplacian_spectrum(mesh, kind)
+        d = stats.spectral_density(mesh, kind, moments=20, probes=probes)
+        a, b = d.bounds
+        x = (lam - (a + b) / 2) / ((b - a) / 2)
+        exact = np.array([np.polynomial.chebyshev.chebval(x, np.eye(20)[m]).mean() for m in range(20)])
+        assert np.max(np.abs(d.moments / jackson(20) - exact)) < 6 * np.sqrt(2 / (n * probes))
+
+
 @pytest.mark.parametrize("name", ["eight.ply", pytest.param("cow.ply", marks=pytest.mark.slow)])  # cow's exact: 4 s
 def test_the_estimated_spectrum_is_within_2_percent_of_the_exact_one(name):
     """Wasserstein-1 distance between the kernel-polynomial distribution and the exact spectrum

@@ -16,7 +16,9 @@ which keeps the density non-negative and smears each eigenvalue over about π h 
 The moments are stochastic traces (Hutchinson): μ_m ≈ (1/(nR)) Σ_r z_rᵀ T_m(Ã) z_r
 over R Rademacher probes, from M/2 products with Ã by the doubling identities
 μ_{2k} = 2⟨T_k z, T_k z⟩ − μ_0 and μ_{2k+1} = 2⟨T_{k+1} z, T_k z⟩ − μ_1.  The products
-are segment sums over the matrix's entries (no dense matrix; memory O(nR)).  With
+gather the matrix's entries row by row: each row's first ``ROW_WIDTH`` entries from a padded
+(n, K) table of columns and values, K the longest row up to that width, the rest (rows of a
+vertex of higher degree) by segment sums (no dense matrix; memory O(nR + nK)).  With
 x = cos θ the distribution function integrates term by term:
 
     F(θ) = μ_0 (π − θ)/π − (2/π) Σ_{m≥1} g_m μ_m sin(mθ)/m.
@@ -37,7 +39,7 @@ import numpy as np
 
 from .. import sparse as jsparse
 from .._exported import stored_jit
-from ..mesh import Mesh
+from ..mesh import Mesh, to_device
 from ._graph import single
 
 __all__ = ["SpectralDensity", "spectral_density", "density_quantiles", "spectrum_distance", "largest_eigenvalue",
@@ -47,6 +49,8 @@ __all__ = ["SpectralDensity", "spectral_density", "density_quantiles", "spectrum
 MOMENTS = 256
 #: Rademacher probes R of the stochastic traces
 PROBES = 16
+#: the most entries a row keeps in the padded table of the matrix products (module docstring)
+ROW_WIDTH = 16
 #: the spectrum's interval [a, b] is widened by this share of its length at each end
 MARGIN = 1e-3
 
@@ -80,14 +84,18 @@ def jackson(count: int) -> np.ndarray:
 
 
 @stored_jit(static_argnames=("n", "count", "probes"))
-def _moments(rows, cols, vals, centre, half, seed, n: int, count: int, probes: int):
+def _moments(table, rest, centre, half, seed, n: int, count: int, probes: int):
     """μ_0 … μ_{count−1} of Ã = (A − centre I)/half from ``probes`` Rademacher probes (n, R) drawn
-    from ``seed`` (module docstring).  The draw is part of the program: one program to keep."""
-    def apply(x):                                    # Ã x, A given by its entries (rows, cols, vals)
-        ax = jax.ops.segment_sum(vals[:, None] * x[cols], rows, num_segments=n)
+    from ``seed`` (module docstring); A given by :func:`_row_table`'s ``table`` and ``rest``.  The
+    draw is part of the program: one program to keep."""
+    (columns, weights), (rows, cols, vals) = table, rest
+
+    def apply(x):                                    # Ã x
+        ax = sum(weights[:, j, None] * x[columns[:, j]] for j in range(columns.shape[1]))
+        ax = ax + jax.ops.segment_sum(vals[:, None] * x[cols], rows, num_segments=n)
         return (ax - centre * x) / half
 
-    z = jax.random.rademacher(jax.random.key(seed), (n, probes), vals.dtype)
+    z = jax.random.rademacher(jax.random.key(seed), (n, probes), weights.dtype)
     norm = n * probes
     t0, t1 = z, apply(z)
     mu0, mu1 = jnp.sum(t0 * t0) / norm, jnp.sum(t1 * t0) / norm
@@ -101,6 +109,26 @@ def _moments(rows, cols, vals, centre, half, seed, n: int, count: int, probes: i
     # step k = 1, 2, …: carry (T_{k−1} z, T_k z) gives μ_{2k} and μ_{2k+1}
     pairs = jnp.concatenate([jnp.stack([mu0, mu1])[None], jnp.stack([even, odd], axis=1)])
     return pairs.reshape(-1)[:count]
+
+
+def _row_table(mat, width: int = ROW_WIDTH):
+    """A sparse matrix as ((columns (n, K) int32, values (n, K)), (rows, cols, vals)): each row's
+    first K = min(longest row, ``width``) entries in the table (padding: the row's own index,
+    value 0), the entries past them as triples; A x = Σ_j values[:, j] x[columns[:, j]] plus the
+    triples' segment sums."""
+    csr = mat.tocsr()
+    n = csr.shape[0]
+    counts = np.diff(csr.indptr)
+    k = max(1, min(int(counts.max(initial=0)), width))
+    row = np.repeat(np.arange(n), counts)
+    pos = np.arange(csr.nnz) - csr.indptr[row]
+    inside = pos < k
+    columns = np.repeat(np.arange(n, dtype=np.int32)[:, None], k, axis=1)
+    values = np.zeros((n, k), csr.dtype)
+    columns[row[inside], pos[inside]] = csr.indices[inside]
+    values[row[inside], pos[inside]] = csr.data[inside]
+    past = ~inside
+    return (columns, values), (row[past].astype(np.int32), csr.indices[past].astype(np.int32), csr.data[past])
 
 
 def laplacian_of_kind(mesh, kind: str):
@@ -185,11 +213,12 @@ def spectral_density(mesh: Mesh, kind: str = "combinatorial", moments: int = MOM
         raise ValueError("the mesh has no vertices")
     top = max(largest_eigenvalue(mat, bound), 1e-12)
     a, b = -MARGIN * top, top * (1 + MARGIN)
-    coo = mat.tocoo()
     dtype = jnp.result_type(float)
-    mu = np.asarray(_moments(jnp.asarray(coo.row, jnp.int32), jnp.asarray(coo.col, jnp.int32),
-                             jnp.asarray(coo.data, dtype), (a + b) / 2, (b - a) / 2, _seed_array(seed), n=n,
-                             count=int(moments), probes=int(probes)), np.float64)
+    (columns, values), (rows, cols, vals) = _row_table(mat)
+    table = (to_device(columns), to_device(values, dtype))
+    rest = (to_device(rows), to_device(cols), to_device(vals, dtype))
+    mu = np.asarray(_moments(table, rest, (a + b) / 2, (b - a) / 2, _seed_array(seed), n=n, count=int(moments),
+                             probes=int(probes)), np.float64)
     damped = jackson(int(moments)) * mu
     theta = np.linspace(np.pi, 0.0, points)                   # λ ascending
     m = np.arange(1, int(moments))
