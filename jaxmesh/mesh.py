@@ -320,7 +320,7 @@ class Mesh:
     # ------------------------------------------------------------------ moves
     def with_vertices(self, vertices) -> "Mesh":
         """Same connectivity, new positions of shape (*batch, V, 3). O(1), jittable."""
-        x = jnp.asarray(vertices)
+        x = to_device(vertices) if isinstance(vertices, np.ndarray) else jnp.asarray(vertices)
         if x.ndim < 2 or x.shape[-2:] != (self.num_vertices, 3):
             raise ValueError(
                 f"vertices must have shape (*batch, {self.num_vertices}, 3), got {x.shape}"

@@ -14,6 +14,7 @@ import functools
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Float
 
 from .geometry import mean_edge_length, vertex_normals
@@ -28,9 +29,20 @@ IMPULSIVE_MASK_STREAM = 1
 
 
 def _key(key):
+    """A key, or an int seed as an integer array that :func:`_seed_key` turns into
+    ``jax.random.PRNGKey(seed)`` inside the program (made here, the key costs a program of its own)."""
     if isinstance(key, int):
-        return jax.random.PRNGKey(key)
+        dtype = np.int64 if jax.config.jax_enable_x64 else np.int32
+        info = np.iinfo(dtype)
+        return np.asarray(key, dtype) if info.min <= key <= info.max else jax.random.PRNGKey(key)
     return key
+
+
+def _seed_key(k):
+    """``jax.random.PRNGKey`` of an int seed array (:func:`_key`); a key as it is."""
+    if k.ndim == 0 and jnp.issubdtype(k.dtype, jnp.integer):
+        return jax.random.PRNGKey(k)
+    return k
 
 
 def add_noise(mesh: Mesh, sigma: float | Float[Array, "..."], key, *, along_normals: bool = False,
@@ -66,7 +78,7 @@ def add_noise(mesh: Mesh, sigma: float | Float[Array, "..."], key, *, along_norm
 # Jitted: an eager call compiles one program per shape instead of one per primitive.
 @functools.partial(jax.jit, static_argnames=("along_normals", "relative", "every"))
 def _noisy_vertices(mesh: Mesh, sigma, k, fraction, along_normals: bool, relative: bool, every: bool):
-    v = mesh.vertices
+    v, k = mesh.vertices, _seed_key(k)
     scale = sigma * mean_edge_length(mesh) if relative else jnp.asarray(sigma, v.dtype)
     scale = jnp.asarray(scale, v.dtype)[..., None, None]
     if along_normals:

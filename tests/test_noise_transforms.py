@@ -250,3 +250,38 @@ def test_taubin_pass_band_warning_names_the_callers_line(spot):
                 call()
             got = [(w.filename, w.lineno) for w in record if "low-pass" in str(w.message)]
             assert got and all(f == __file__ for f, _ in got), (eager, got)
+
+
+def test_eager_calls_compile_one_program_each_not_one_per_host_array():
+    """A host array reaches the device by ``device_put`` (``jnp.asarray`` compiles a program for
+    each new shape), an int seed becomes a key inside the noise program, and the divergence test
+    is one program: counted by JAX's compile events on a mesh of a shape no other test uses."""
+    from conftest import grid_arrays
+    from jaxmesh.denoise.divergence import diverged
+
+    v, f = grid_arrays(13, 7, jitter=0.1, seed=3)
+    mesh = jaxmesh.Mesh.from_arrays(v, f)
+    moved = np.asarray(mesh.vertices) * 1.5
+    compiled = []
+
+    def listen(name, secs, **kw):
+        if name.endswith("backend_compile_duration"):
+            compiled.append(name)
+
+    def programs(run):
+        compiled.clear()
+        jax.monitoring.register_event_duration_secs_listener(listen)
+        try:
+            out = run()
+        finally:
+            jax.monitoring.unregister_event_duration_listener(listen)
+        return len(compiled), out
+
+    assert programs(lambda: mesh.with_vertices(moved))[0] == 0
+    count, noisy = programs(lambda: jaxmesh.add_noise(mesh, 0.3, 11))
+    assert count == 1
+    np.testing.assert_array_equal(noisy.vertices, jaxmesh.add_noise(mesh, 0.3, jax.random.PRNGKey(11)).vertices)
+    count, bad = programs(lambda: diverged(mesh, mesh.with_vertices(moved * 20)))
+    assert count == 1 and bool(bad)
+    count, err = programs(lambda: jaxmesh.metrics.rms_vertex_error(mesh, moved))
+    assert count == 1 and float(err) > 0

@@ -15,6 +15,7 @@ from ..transforms import far_mask
 __all__ = ["diverged"]
 
 
+@functools.partial(jax.jit, static_argnames=("segments",))   # one program, not one per primitive, when eager
 def diverged(before: Mesh, after: Mesh, growth: float = 10.0, far=None, segment=None, segments: int | None = None):
     """True (per batch element) where ``after`` has a non-finite coordinate or a
     bounding-box diagonal more than ``growth`` times that of ``before``: a

@@ -10,12 +10,11 @@ value passed back in reproduces the tuned run exactly.
 from __future__ import annotations
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array
 
 from .._exported import stored_jit
-from ..mesh import Mesh
+from ..mesh import Mesh, to_device
 from ..transforms import far_mask, far_vertices, from_frame, to_frame, unit_frame
 from ._compiled import compilable, split_call
 from .registry import METHODS, Method, as_method, diverged
@@ -65,7 +64,7 @@ def denoise_in_unit_frame(mesh: Mesh, method: str | Method, **params) -> Mesh:
     m = as_method(method)
     aux = {k: v for k, v in m.prepare(mesh).items() if params.get(k) is None}
     far = None if mesh.batch_shape else far_vertices(mesh)
-    mask = None if far is None else jnp.asarray(np.isin(np.arange(mesh.num_vertices), far))
+    mask = None if far is None else to_device(np.isin(np.arange(mesh.num_vertices), far))
     out, bad = _compiled_framed_run(mesh, m, mask, {**params, **aux})
     if bool(bad):
         shown = {k: v for k, v in params.items() if k not in m.aux}
