@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import os
 import sys
@@ -176,3 +177,30 @@ def library_key(key, stream: int):
     k = jax.random.PRNGKey(key) if isinstance(key, int) else key
     return jax.random.fold_in(k, stream)
 
+
+def frozen_pytree(cls=None, *, static: tuple[str, ...] = ()):
+    """Register the frozen dataclass ``cls`` as a JAX pytree: its fields are the children, in
+    order, except those named in ``static``, which travel in the tree's (hashable) structure.
+    Rebuilding it from children does not run ``__init__``, so any leaves will do (``vmap`` axes,
+    ``ShapeDtypeStruct`` s, None), as for an ``equinox.Module``, without importing equinox.
+    Usable as a decorator, with or without ``static``."""
+    if cls is None:
+        return functools.partial(frozen_pytree, static=tuple(static))
+    names = tuple(f.name for f in dataclasses.fields(cls))
+    children = tuple(n for n in names if n not in static)
+    keys = tuple(jax.tree_util.GetAttrKey(n) for n in children)
+
+    def flatten_with_keys(obj):
+        return tuple(zip(keys, (getattr(obj, n) for n in children))), tuple(getattr(obj, n) for n in static)
+
+    def flatten(obj):
+        return tuple(getattr(obj, n) for n in children), tuple(getattr(obj, n) for n in static)
+
+    def unflatten(aux, leaves):
+        obj = object.__new__(cls)
+        for name, value in (*zip(static, aux, strict=True), *zip(children, leaves, strict=True)):
+            object.__setattr__(obj, name, value)
+        return obj
+
+    jax.tree_util.register_pytree_with_keys(cls, flatten_with_keys, unflatten, flatten_func=flatten)
+    return cls

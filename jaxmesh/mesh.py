@@ -18,7 +18,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float, Int
 
-from ._private import caller_stacklevel
+from ._private import caller_stacklevel, frozen_pytree
 
 __all__ = ["Mesh", "MeshWarning", "build_topology"]
 
@@ -214,6 +214,7 @@ def zero_area_faces(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return cross <= eps * scale
 
 
+@frozen_pytree
 @dataclasses.dataclass(frozen=True, eq=False, repr=False)
 class Mesh:
     """An immutable triangle mesh: a frozen dataclass registered as a JAX pytree whose
@@ -376,20 +377,3 @@ def _leaf_equal(a, b) -> bool:
         a, b = np.asarray(a), np.asarray(b)
         return a.shape == b.shape and a.dtype == b.dtype and bool(np.array_equal(a, b))
     return bool(a == b)
-
-
-_FIELDS = tuple(f.name for f in dataclasses.fields(Mesh))
-
-
-def _unflatten(_, leaves) -> Mesh:
-    """A Mesh from its leaves, whatever they are (``__init__`` is not run: JAX passes
-    leaves that are not arrays, as axes or shapes)."""
-    mesh = object.__new__(Mesh)
-    for name, leaf in zip(_FIELDS, leaves, strict=True):
-        object.__setattr__(mesh, name, leaf)
-    return mesh
-
-
-jax.tree_util.register_pytree_with_keys(
-    Mesh, lambda m: (tuple((jax.tree_util.GetAttrKey(n), getattr(m, n)) for n in _FIELDS), None), _unflatten,
-    flatten_func=lambda m: (tuple(getattr(m, n) for n in _FIELDS), None))

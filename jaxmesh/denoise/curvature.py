@@ -25,7 +25,6 @@ from typing import Literal
 
 import jax
 import jax.numpy as jnp
-import lineax as lx
 from jaxtyping import Array, Float
 
 from .._private import Scalar, filled_mass, lift, safe_divide, segment_sum_rows, segment_sum_scalars
@@ -96,6 +95,8 @@ def implicit_diffusion_step(
         return _direct_solve(mesh, mass, stiffness, tau[..., 0, 0], rhs)
     if solver != "cg":
         raise ValueError(f"solver must be 'cg' or 'cholesky', got {solver!r}")
+    import lineax as lx  # here, not at the top: the commands that never solve with it do not import lineax
+
     op = lx.FunctionLinearOperator(apply, jax.eval_shape(lambda: rhs),
                                    tags=(lx.symmetric_tag, lx.positive_semidefinite_tag))
     tol = _cg_tolerance(x.dtype)

@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
-import lineax as lx
 from jaxtyping import Array, Float
 
 from .._private import Scalar, safe_divide
@@ -111,6 +110,8 @@ def _fit(mesh: Mesh, y, w, alpha, x0, topology=None):
         return w[:, None] * x + alpha * _umbrella_t(mesh, umbrella(mesh, x))
 
     diag = jax.lax.stop_gradient(w + alpha * kk_diag)                                  # diag(W + α KᵀK)
+    import lineax as lx  # here, not at the top: the commands that never solve with it do not import lineax
+
     op = lx.FunctionLinearOperator(matvec, jax.ShapeDtypeStruct(y.shape, y.dtype), tags=lx.positive_semidefinite_tag)
     pre = lx.TaggedLinearOperator(lx.DiagonalLinearOperator(jnp.broadcast_to(1 / diag[:, None], y.shape)),
                                   lx.positive_semidefinite_tag)

@@ -53,7 +53,6 @@ from typing import Literal
 
 import jax
 import jax.numpy as jnp
-import lineax as lx
 from jaxtyping import Array, Float
 
 from .._private import Scalar, safe_divide, safe_norm, segment_sum_rows, segment_sum_scalars
@@ -142,6 +141,8 @@ def _cg_solve(idx, coef, r_idx, r_coef, alpha_k, beta, diag, rhs, start, cg):
         ry = _apply_t(r_idx, r_coef, _apply(r_idx, r_coef, y), nv)
         return y + alpha_k * ry + beta * dy
 
+    import lineax as lx  # here, not at the top: the commands that never solve with it do not import lineax
+
     op = lx.FunctionLinearOperator(matvec, jax.ShapeDtypeStruct(rhs.shape, rhs.dtype),
                                    tags=lx.positive_semidefinite_tag)
     pre = lx.TaggedLinearOperator(
@@ -179,6 +180,8 @@ def _l0_single(mesh: Mesh, graph: FaceGraph, p_star, lam, alpha, iterations: int
     r_coef = jnp.where(graph.edge_mask[:, None], jnp.asarray(_R_COEF, p_star.dtype), 0)
     # what every step shares: the stencils (they depend on the connectivity alone) and R's part
     r_squares, pairs, r_products = _squares(r_idx, r_coef, nv), _stencil_pairs(r_idx), _pair_products(r_coef)
+    import lineax as lx  # here, not at the top: the commands that never solve with it do not import lineax
+
     cg = lx.CG(rtol=1e-5, atol=0.0, max_steps=1000)
 
     def step(k, p):

@@ -17,7 +17,6 @@ import warnings
 from collections.abc import Callable
 from typing import Any
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -189,9 +188,11 @@ class Method:
         tail = (f"({x.dtype}); if the input was finite, a parameter is outside the range this "
                 "precision supports (try float64 or a smaller step)")
         if isinstance(x, jax.core.Tracer):
+            import equinox as eqx    # here: a call outside jit does not import equinox
+
             bad = ~jnp.all(jnp.isfinite(x), axis=(-2, -1))
             return out.with_vertices(eqx.error_if(x, bad, f"{self.name} produced non-finite coordinates {tail}"))
-        if not bool(jnp.isfinite(x).all()):
+        if not np.isfinite(np.asarray(x)).all():      # on the host: no program of its own
             raise FloatingPointError(f"{self.name} produced non-finite coordinates with "
                                      f"{params or 'its defaults'} {tail}")
         return out

@@ -38,13 +38,12 @@ import dataclasses
 from collections.abc import Sequence
 from typing import Any, NamedTuple
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array
 
-from .._private import PROBE_STREAM, library_key
+from .._private import PROBE_STREAM, frozen_pytree, library_key
 from ..denoise import Method, as_method, denoise_in_unit_frame
 from ..mesh import Mesh
 from ..metrics import visual_error
@@ -200,8 +199,11 @@ def _named(cfg: _Config, found: Found, loss, error, vertices, closing: int) -> _
 # --------------------------------------------------------------------------- results
 
 
-class TuneResult(eqx.Module):
-    """What a tuning run found.
+@frozen_pytree(static=("method", "statics", "denoiser"))
+@dataclasses.dataclass(frozen=True, eq=False)
+class TuneResult:
+    """What a tuning run found (a pytree: its arrays are the leaves; ``method``, ``statics`` and
+    ``denoiser`` are static).
 
     * ``params``: the tuned continuous parameters (values in the unit-diagonal
       tuning frame; :meth:`apply` runs the method in that frame);
@@ -222,9 +224,9 @@ class TuneResult(eqx.Module):
     Arrays carry a leading batch axis when returned by :func:`tune_batch`.
     """
 
-    method: str = eqx.field(static=True)
-    statics: tuple[tuple[str, Any], ...] = eqx.field(static=True)
-    denoiser: Method = eqx.field(static=True)
+    method: str
+    statics: tuple[tuple[str, Any], ...]
+    denoiser: Method
     params: dict
     loss: Array
     error: Array
