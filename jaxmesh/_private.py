@@ -10,6 +10,7 @@ import sys
 import jax
 import jax.numpy as jnp
 import jaxtyping
+import numpy as np
 from jaxtyping import Array, ArrayLike, Float, Int, Shaped
 
 #: the folders of run-time annotation checkers' wrappers (jaxtyping's import hook, when it checks jaxmesh)
@@ -165,7 +166,7 @@ def x64_context(enabled: bool = True):
     return enable(enabled)
 
 
-def library_key(key, stream: int):
+def library_key(key, stream: int, salt: int = 0):
     """The key the library draws its own randomness from (SURE probes,
     recorruptions), given the user's ``key`` (an int seed or a key): folded with
     ``stream`` so it never reproduces noise drawn with the same seed.  Without
@@ -173,9 +174,33 @@ def library_key(key, stream: int):
     ``normal(PRNGKey(0), (2, V, 1))[0]`` *is* ``normal(PRNGKey(0), (V, 1))``
     (``add_noise(..., 0, along_normals=True)``'s draw), and
     ``rademacher(PRNGKey(0), s) == -sign(normal(PRNGKey(0), s))``: an estimator's
-    own noise equal to the noise it estimates is no estimate."""
-    k = jax.random.PRNGKey(key) if isinstance(key, int) else key
-    return jax.random.fold_in(k, stream)
+    own noise equal to the noise it estimates is no estimate.  A nonzero ``salt`` is folded in
+    after the stream (an independent set of draws from the same stream)."""
+    return _folded_key(key_argument(key), stream, salt)
+
+
+@functools.partial(jax.jit, static_argnames=("stream", "salt"))
+def _folded_key(key, stream: int, salt: int):
+    k = jax.random.fold_in(seed_key(key), stream)
+    return jax.random.fold_in(k, salt) if salt else k
+
+
+def key_argument(key):
+    """A ``jax.random`` key as it is; an int seed as an integer array for :func:`seed_key` to turn
+    into ``jax.random.PRNGKey(seed)`` inside a program (made eagerly, the key costs programs of its
+    own); a seed outside the integer type's range as ``PRNGKey(seed)`` itself."""
+    if isinstance(key, int):
+        dtype = np.int64 if jax.config.jax_enable_x64 else np.int32
+        info = np.iinfo(dtype)
+        return np.asarray(key, dtype) if info.min <= key <= info.max else jax.random.PRNGKey(key)
+    return key
+
+
+def seed_key(k):
+    """``jax.random.PRNGKey`` of an int seed array (:func:`key_argument`); a key as it is."""
+    if k.ndim == 0 and jnp.issubdtype(k.dtype, jnp.integer):
+        return jax.random.PRNGKey(k)
+    return k
 
 
 def frozen_pytree(cls=None, *, static: tuple[str, ...] = ()):

@@ -14,11 +14,11 @@ import functools
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 from jaxtyping import Array, Float
 
 from .geometry import mean_edge_length, vertex_normals
 from .mesh import Mesh
+from ._private import key_argument, seed_key
 
 __all__ = ["add_noise", "add_impulsive_noise", "IMPULSIVE_FRACTION", "IMPULSIVE_MASK_STREAM"]
 
@@ -26,23 +26,6 @@ __all__ = ["add_noise", "add_impulsive_noise", "IMPULSIVE_FRACTION", "IMPULSIVE_
 IMPULSIVE_FRACTION = 0.5
 #: folded into the key for the impulsive mask b (the displacements ξ use the key itself)
 IMPULSIVE_MASK_STREAM = 1
-
-
-def _key(key):
-    """A key, or an int seed as an integer array that :func:`_seed_key` turns into
-    ``jax.random.PRNGKey(seed)`` inside the program (made here, the key costs a program of its own)."""
-    if isinstance(key, int):
-        dtype = np.int64 if jax.config.jax_enable_x64 else np.int32
-        info = np.iinfo(dtype)
-        return np.asarray(key, dtype) if info.min <= key <= info.max else jax.random.PRNGKey(key)
-    return key
-
-
-def _seed_key(k):
-    """``jax.random.PRNGKey`` of an int seed array (:func:`_key`); a key as it is."""
-    if k.ndim == 0 and jnp.issubdtype(k.dtype, jnp.integer):
-        return jax.random.PRNGKey(k)
-    return k
 
 
 def add_noise(mesh: Mesh, sigma: float | Float[Array, "..."], key, *, along_normals: bool = False,
@@ -72,13 +55,13 @@ def add_noise(mesh: Mesh, sigma: float | Float[Array, "..."], key, *, along_norm
     if isinstance(fraction, (int, float)) and not 0.0 <= fraction <= 1.0:
         raise ValueError(f"fraction must be in [0, 1], got {fraction!r}")
     every = isinstance(fraction, (int, float)) and fraction == 1.0
-    return mesh.with_vertices(_noisy_vertices(mesh, sigma, _key(key), fraction, along_normals, relative, every))
+    return mesh.with_vertices(_noisy_vertices(mesh, sigma, key_argument(key), fraction, along_normals, relative, every))
 
 
 # Jitted: an eager call compiles one program per shape instead of one per primitive.
 @functools.partial(jax.jit, static_argnames=("along_normals", "relative", "every"))
 def _noisy_vertices(mesh: Mesh, sigma, k, fraction, along_normals: bool, relative: bool, every: bool):
-    v, k = mesh.vertices, _seed_key(k)
+    v, k = mesh.vertices, seed_key(k)
     scale = sigma * mean_edge_length(mesh) if relative else jnp.asarray(sigma, v.dtype)
     scale = jnp.asarray(scale, v.dtype)[..., None, None]
     if along_normals:

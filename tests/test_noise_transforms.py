@@ -285,3 +285,31 @@ def test_eager_calls_compile_one_program_each_not_one_per_host_array():
     assert count == 1 and bool(bad)
     count, err = programs(lambda: jaxmesh.metrics.rms_vertex_error(mesh, moved))
     assert count == 1 and float(err) > 0
+
+
+def test_library_keys_and_method_parameters_cost_no_eager_programs():
+    """An int seed's library key (stream and salt folded in) is one program, equal to folding
+    ``PRNGKey(seed)`` op by op; a method's host-number parameters stay host arrays (traced as
+    arguments, no cast program), values given as JAX arrays stay JAX arrays."""
+    from jaxmesh._private import library_key
+    from jaxmesh.denoise import METHODS
+
+    compiled = []
+
+    def listen(name, secs, **kw):
+        if name.endswith("backend_compile_duration"):
+            compiled.append(name)
+    jax.monitoring.register_event_duration_secs_listener(listen)
+    try:
+        key = library_key(11, 12345, salt=678)
+    finally:
+        jax.monitoring.unregister_event_duration_listener(listen)
+    assert len(compiled) == 1
+    expected = jax.random.fold_in(jax.random.fold_in(jax.random.PRNGKey(11), 12345), 678)
+    np.testing.assert_array_equal(key, expected)
+    np.testing.assert_array_equal(library_key(jax.random.PRNGKey(11), 12345),
+                                  jax.random.fold_in(jax.random.PRNGKey(11), 12345))
+    cont, _ = METHODS["taubin"].split(lam=0.5, mu=-1)
+    assert all(isinstance(v, np.ndarray) and v.dtype == jnp.result_type(float) for v in cont.values())
+    cont, _ = METHODS["taubin"].split(lam=jnp.asarray(0.5), mu=-0.53)
+    assert isinstance(cont["lam"], jax.Array) and isinstance(cont["mu"], np.ndarray)

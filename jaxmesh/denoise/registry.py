@@ -160,7 +160,9 @@ class Method:
         and the static arguments of one compiled call (defaults included, so every
         continuous value is traced and a new value never recompiles)."""
         cont, statics = self.parts(self.resolve(**params))
-        return {k: jnp.asarray(v, jnp.result_type(float)) for k, v in cont.items()}, statics
+        dtype = jnp.result_type(float)     # host numbers stay on the host: jnp.asarray would compile a cast
+        return {k: np.asarray(v, dtype) if isinstance(v, (int, float, np.number, np.ndarray)) else jnp.asarray(v, dtype)
+                for k, v in cont.items()}, statics
 
     def parts(self, full: dict[str, Any]) -> tuple[dict[str, Any], tuple]:
         """(the continuous parameters as given, the others as a sorted hashable tuple) of

@@ -57,7 +57,7 @@ from .._private import PATCH_STREAM, caller_stacklevel, library_key
 from .._threads import concurrent_map
 from ..geometry import face_normals, mean_edge_length, vertex_normals
 from ..host import HostMesh
-from ..mesh import Mesh
+from ..mesh import Mesh, to_device
 from ..transforms import far_vertices
 from .blend import (BLEND_DRAWS, BLEND_SALT, BLEND_SIZE, SNAPSHOT_FACTORS, best_mixture, check_snapshots,
                     snapshot_rows, tilt_gram, worth_blending)
@@ -225,7 +225,7 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
     path_methods = _path_methods(paths)
     runs = concurrent_map(lambda c: jax.block_until_ready(run_setting(noisy, y, c.method, c.params, auxes[c.method],
                                                                       c.method in path_methods)), components)
-    out = jax.block_until_ready(sum(c.weight * x for c, x in zip(components, runs)))
+    out = to_device(sum(c.weight * np.asarray(x) for c, x in zip(components, runs)))     # on the host: no programs
     clock.append(time.perf_counter())
     seconds = dict(zip(("noise_law", "patches", "ranking", "choice"), np.diff(clock).round(3).tolist()))
     method, params = (components[0].method, components[0].params) if len(components) == 1 else ("blend", {})
@@ -260,6 +260,12 @@ def _tilts(noisy: Mesh, inputs, targets, candidates: Sequence[Candidate], auxes:
         return np.stack([np.asarray(setting_tilt(noisy, x, t, nu, ell, c.method, c.params, auxes[c.method],
                                                  c.method in counted)) for x, t in zip(inputs, targets)])
     return concurrent_map(tilts, candidates)
+
+
+@jax.jit
+def _recorrupted_pair(y, z, a):
+    """The recorrupted inputs ŷ = y + a z and targets ỹ = y − z / a, one program."""
+    return y[None] + a * z, y[None] - z / a
 
 
 def _held_out(noisy: Mesh, pilot: Mesh, nu_pilot, n, ell, core, auxes: dict, impulsive: tuple, key):
@@ -307,7 +313,7 @@ def _rank(host: HostMesh, core, ell, candidates, paths, s_vertex, s_t, draws, bl
 
         def draw(count: int, salt: int = 0):
             zs = recorruptions(noisy, nu, n, ell, s_vertex, s_t, count, key, salt=salt, antithetic=antithetic)
-            return y[None] + a * zs[0], y[None] - zs[0] / a, zs[1]
+            return (*_recorrupted_pair(y, zs[0], a), zs[1])
         inputs, targets, trace = draw(draws)
         constant, nothing = (1 + 1 / a**2) * trace, (1 + a**2) * trace
 

@@ -52,7 +52,7 @@ import scipy.sparse as sp
 from ..denoise.impulse_repair import mixture_posterior, scale_mixture
 from ..geometry import mean_edge_length, vertex_normals
 from ..host import HostMesh, as_host
-from ..mesh import Mesh
+from ..mesh import Mesh, to_device
 from .noise_level import _normal_high_pass, projection_normals
 
 __all__ = ["ImpulsiveNoise", "estimate_impulsive_noise", "read_after_repair", "IMPULSIVE_RATIO", "IMPULSIVE_FLOOR",
@@ -125,7 +125,7 @@ def estimate_impulsive_noise(mesh: Mesh | HostMesh) -> ImpulsiveNoise:
     others = sp.diags(1 / np.where(ok, g2, 1.0)) @ (sq - sp.diags(sq.diagonal()))
     z = np.where(ok, _normal_high_pass(mesh, mesh.vertices, projection_normals(host)) / np.sqrt(np.where(ok, g2, 1)),
                  0.0)
-    p, v0, v1 = (float(v) for v in _scale_mixture(jnp.asarray(z[ok] ** 2), EM_STEPS))
+    p, v0, v1 = (float(v) for v in _scale_mixture(to_device(z[ok] ** 2), EM_STEPS))
     delta = max(v1 - v0, 0.0) / float(np.mean(own[ok]))
     s0 = max(p * v1 + (1 - p) * v0 - p * delta, 0.0)
     s1 = s0 + delta
@@ -145,7 +145,7 @@ def estimate_impulsive_noise(mesh: Mesh | HostMesh) -> ImpulsiveNoise:
 
 def _posterior(z2, p, v0, v1) -> np.ndarray:
     """:func:`~jaxmesh.denoise.mixture_posterior` on host arrays (float64)."""
-    return np.asarray(_posterior_jit(jnp.asarray(z2), p, jnp.asarray(v0), jnp.asarray(v1)), dtype=np.float64)
+    return np.asarray(_posterior_jit(to_device(np.asarray(z2)), p, v0, v1), dtype=np.float64)
 
 
 

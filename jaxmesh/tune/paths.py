@@ -178,7 +178,6 @@ def path_risks(mesh: Mesh, path: SearchPath, setting: dict, inputs, targets, nu,
     statics = tuple(kv for kv in statics if kv[0] != "iterations")
     capacity = -(-path.max_iterations // PATH_CAPACITY_STEP) * PATH_CAPACITY_STEP
     factor, patience = (np.inf, 0) if stop is None else stop
-    risk = _path_risks(mesh, inputs, targets, nu, ell, cont, aux, jnp.asarray(path.max_iterations, jnp.int32),
-                       jnp.asarray(factor, inputs.dtype), jnp.asarray(patience, jnp.int32), path.method, statics,
-                       capacity)
+    risk = _path_risks(mesh, inputs, targets, nu, ell, cont, aux, np.int32(path.max_iterations),
+                       np.asarray(factor, inputs.dtype), np.int32(patience), path.method, statics, capacity)
     return np.asarray(risk, np.float64)[:path.max_iterations] * len(inputs)

@@ -18,7 +18,6 @@ from __future__ import annotations
 import dataclasses
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
 from .._exported import stored_jit
@@ -58,7 +57,7 @@ def _split(method: str, params: dict, counted: bool) -> tuple:
     if not counted:
         return cont, statics, None
     count = dict(statics)["iterations"]
-    return cont, tuple(kv for kv in statics if kv[0] != "iterations"), jnp.asarray(count, jnp.int32)
+    return cont, tuple(kv for kv in statics if kv[0] != "iterations"), np.int32(count)
 
 
 def run_setting(mesh: Mesh, x, method: str, params: dict, aux: dict, counted: bool = False):
@@ -122,7 +121,7 @@ def _entry_sums(noisy: Mesh, entry: _Entry, inputs, targets, nu, ell, auxes: dic
     aux = auxes[entry.method]
     if entry.path is not None:
         return path_risks(noisy, entry.path, entry.params, inputs, targets, nu, ell, aux)
-    total = sum(float(jnp.sum(setting_tilt(noisy, x, t, nu, ell, entry.method, entry.params, aux) ** 2))
+    total = sum(float(np.sum(np.asarray(setting_tilt(noisy, x, t, nu, ell, entry.method, entry.params, aux)) ** 2))
                 for x, t in zip(inputs, targets))
     return np.array([total / noisy.num_faces])
 

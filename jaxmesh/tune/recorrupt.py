@@ -91,11 +91,10 @@ def recorruptions(noisy: Mesh, nu, n, ell, s, s_t: float, draws: int, key, salt:
 
     Returns:
         (z (draws, V, 3), tr(AᵀAΣ)/F)."""
-    k = library_key(key, RECORRUPTION_STREAM)
-    k = jax.random.fold_in(k, salt) if salt else k
+    k = library_key(key, RECORRUPTION_STREAM, salt)
     s_v = jnp.asarray(np.broadcast_to(np.asarray(s, dtype=np.float64), (noisy.num_vertices,)), noisy.dtype)
-    zs = _fields(k, s_v, n, jnp.asarray(s_t, noisy.dtype), draws, antithetic)
-    return zs, float(_trace(noisy, nu, n, s_v, jnp.asarray(s_t, noisy.dtype), ell))
+    zs = _fields(k, s_v, n, np.asarray(s_t, noisy.dtype), draws, antithetic)
+    return zs, float(_trace(noisy, nu, n, s_v, np.asarray(s_t, noisy.dtype), ell))
 
 
 @stored_jit(static_argnames=("draws", "antithetic"))
