@@ -38,6 +38,7 @@ def commands(mesh: Path, tmp: Path) -> dict[str, list[str]]:
         "info": ["info", str(mesh)],
         "convert": ["convert", str(mesh), str(tmp / "out.obj"), "--force"],
         "noise": ["noise", str(mesh), str(tmp / "out-noise.ply"), "--force"],
+        "denoise (blind default)": ["denoise", str(noisy), str(tmp / "out-a.ply"), "--force"],
         "denoise --method taubin": ["denoise", str(noisy), str(tmp / "out-t.ply"), "--method", "taubin", "--force"],
         "denoise --method kernel": ["denoise", str(noisy), str(tmp / "out-k.ply"), "--method", "kernel", "--force"],
         "denoise --method learned": ["denoise", str(noisy), str(tmp / "out-l.ply"), "--method", "learned", "--force"],

@@ -1,6 +1,6 @@
 """Degree / clustering statistics and geodesic distributions against named peers.
 
-    .venv/bin/python benchmarks/bench_stats.py [--no-networkx] [--memory]
+    .venv/bin/python benchmarks/bench_stats.py [--no-networkx] [--memory] [--spectra]
 
 * clustering + average neighbour degree + degree assortativity on the bunny
   subdivided twice (~556k vertices), graph already built, against
@@ -12,7 +12,12 @@
 * ``--memory``: only the peak resident memory and wall time of the command
   ``jaxmesh stats igea.ply --json`` (134k vertices, 200 sources; needs
   ../shared/meshes), in a child process, against the size of one (S, V) float64
-  distance array, which it no longer holds.
+  distance array, which it no longer holds;
+* ``--spectra``: only the kernel-polynomial spectra (both Laplacians, 256 moments, 16
+  probes) of fandisk and the bunny, warm, best of three: ``spectral_density`` (the
+  products through a padded row table) against the same recurrence with the products as
+  segment sums over every entry (jitted here) and against it on ``scipy.sparse``
+  (numpy, the same probe count).
 
 Not part of the test suite; numbers depend on the machine, compare ratios.
 """
@@ -90,13 +95,95 @@ def cli_memory() -> None:
           f"one (200, V) float64 distance array is {200 * v * 8 / 1e9:.2f} GB")
 
 
+def _bounds(mat) -> tuple[float, float]:
+    from jaxmesh.stats.density import MARGIN, largest_eigenvalue
+
+    top = largest_eigenvalue(mat, np.inf)
+    return -MARGIN * top, top * (1 + MARGIN)
+
+
+def _table_moments(mat, seed: int = 0, count: int = 256, probes: int = 16):
+    """``spectral_density``'s own moments program (the padded row table), alone."""
+    from jaxmesh.stats.density import _moments, _row_table, _seed_array
+
+    a, b = _bounds(mat)
+    (columns, values), rest = _row_table(mat)
+    table, rest = (jax.device_put(columns), jax.device_put(values)), tuple(jax.device_put(x) for x in rest)
+    return lambda: jax.block_until_ready(_moments(table, rest, (a + b) / 2, (b - a) / 2, _seed_array(seed),
+                                                  n=mat.shape[0], count=count, probes=probes))
+
+
+def _segment_moments(mat, seed: int = 0, count: int = 256, probes: int = 16):
+    """The same moments with Ã x as segment sums over every entry (the formulation before the table)."""
+    a, b = _bounds(mat)
+    coo, n = mat.tocoo(), mat.shape[0]
+    rows, cols, vals = (jax.device_put(np.asarray(x)) for x in (coo.row.astype(np.int32),
+                                                               coo.col.astype(np.int32), coo.data))
+
+    @jax.jit
+    def moments(rows, cols, vals, centre, half):
+        def apply(x):
+            return (jax.ops.segment_sum(vals[:, None] * x[cols], rows, num_segments=n) - centre * x) / half
+        z = jax.random.rademacher(jax.random.key(seed), (n, probes), vals.dtype)
+        t1 = apply(z)
+
+        def step(carry, _):
+            prev, cur = carry
+            nxt = 2 * apply(cur) - prev
+            return (cur, nxt), (jax.numpy.sum(cur * cur), jax.numpy.sum(nxt * cur))
+        return jax.lax.scan(step, (z, t1), None, length=count // 2 - 1)[1]
+    return lambda: jax.block_until_ready(moments(rows, cols, vals, (a + b) / 2, (b - a) / 2))
+
+
+def _scipy_moments(mat, count: int = 256, probes: int = 16):
+    """The same recurrence on ``scipy.sparse`` (numpy probes)."""
+    a, b = _bounds(mat)
+    centre, half = (a + b) / 2, (b - a) / 2
+    z = np.random.default_rng(0).choice([-1.0, 1.0], size=(mat.shape[0], probes))
+
+    def run():
+        prev, cur, out = z, (mat @ z - centre * z) / half, []
+        for _ in range(count // 2 - 1):
+            prev, cur = cur, 2 * (mat @ cur - centre * cur) / half - prev
+            out.append((np.sum(prev * prev), np.sum(cur * prev)))
+        return out
+    return run
+
+
+def spectra() -> None:
+    """Both kernel-polynomial spectra of fandisk and the bunny, three ways (module docstring)."""
+    from jaxmesh.stats.density import laplacian_of_kind
+
+    shared = Path(__file__).resolve().parents[2] / "shared" / "meshes"
+    meshes = {"fandisk": shared / "fandisk.ply", "bunny": None}
+    for name, path in meshes.items():
+        if path is not None and not path.exists():
+            print(f"{name}: {path} is missing (../shared/meshes), skipped")
+            continue
+        mesh = jaxmesh.data.load_sample("bunny", dtype="float64") if path is None else jaxmesh.load(path)
+        mats = [laplacian_of_kind(mesh, kind)[0] for kind in ("combinatorial", "normalized")]
+        t_all, _ = timed(lambda: [stats.spectral_density(mesh, kind) for kind in ("combinatorial", "normalized")])
+        ways = {"row table": [_table_moments(m) for m in mats], "segment sums": [_segment_moments(m) for m in mats],
+                "scipy.sparse": [_scipy_moments(m) for m in mats]}
+        times = {}
+        for way, runs in ways.items():
+            [f() for f in runs]                  # compiled before the clock
+            times[way] = timed(lambda runs=runs: [f() for f in runs])[0]
+        print(f"{name} (V={mesh.num_vertices}), the moments of both spectra: "
+              + "; ".join(f"{way} {t:.3f} s ({t / times['row table']:.2f}x)" for way, t in times.items())
+              + f"; spectral_density whole (λ_max, moments, density) {t_all:.3f} s")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--no-networkx", action="store_true", help="skip networkx (about half a minute)")
     ap.add_argument("--memory", action="store_true", help="only the peak memory of `jaxmesh stats` on igea")
+    ap.add_argument("--spectra", action="store_true", help="only the kernel-polynomial spectra, three ways")
     args = ap.parse_args()
     if args.memory:
         return cli_memory()
+    if args.spectra:
+        return spectra()
     bunny = jaxmesh.data.load_sample("bunny", dtype="float64")
     v, f = np.asarray(bunny.vertices, np.float64), np.asarray(bunny.faces)
     for _ in range(2):
