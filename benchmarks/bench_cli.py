@@ -1,6 +1,7 @@
 """Command-line latency: every ``jaxmesh`` command on a small mesh, cold and warm, in one run.
 
     .venv/bin/python benchmarks/bench_cli.py [--mesh spot] [--keep F] [--repeat 3] [--commands info,hash]
+                                             [--against DIR]
 
 Each command runs as a user types it (a fresh process of the installed ``jaxmesh``
 executable), first with an empty compilation cache (``JAXMESH_CACHE_DIR`` a new empty
@@ -10,7 +11,11 @@ and ``python -c "import jax"`` (every computing command imports JAX).  Inputs: t
 shared mesh (``../shared/meshes/``, default spot, 2,930 vertices), a noisy copy of it and
 its ``.jxm`` file, made once before the timings; ``--keep F`` first simplifies the mesh to
 the fraction F of its faces (``jaxmesh.hashing.attacks.simplify``: ``--keep 0.615`` makes
-spot a mesh of about 1,800 vertices).  Not part of the test suite: numbers
+spot a mesh of about 1,800 vertices).  ``--against DIR`` times another checkout of jaxmesh
+(``DIR`` its root, e.g. a ``git worktree`` of an older commit) beside this one: every
+command runs as ``python -m jaxmesh`` with ``PYTHONPATH`` set to each root in turn, the
+two alternating run by run (the machine's drift falls on both), each with its own cache,
+and the table gets both columns and their ratio.  Not part of the test suite: numbers
 depend on the machine; compare the rows of one run.
 """
 
@@ -27,6 +32,7 @@ import time
 from pathlib import Path
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "meshes"
+ROOT = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
 
 
@@ -50,8 +56,10 @@ def commands(mesh: Path, tmp: Path) -> dict[str, list[str]]:
     }
 
 
-def seconds(argv: list[str], cache: Path) -> float:
-    env = {**os.environ, "JAXMESH_CACHE_DIR": str(cache)}
+def seconds(argv: list[str], cache: Path, root: Path | None = None) -> float:
+    """Wall seconds of ``argv`` with the compilation cache ``cache`` (and jaxmesh imported from
+    ``root`` when given)."""
+    env = {**os.environ, "JAXMESH_CACHE_DIR": str(cache), **({"PYTHONPATH": str(root)} if root else {})}
     start = time.perf_counter()
     done = subprocess.run(argv, env=env, capture_output=True, text=True)
     took = time.perf_counter() - start
@@ -81,7 +89,11 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3, help="warm runs per command (median)")
     ap.add_argument("--commands", default="", help="comma-separated subset of the rows (default: all)")
     ap.add_argument("--keep", type=float, default=1.0, help="simplify the mesh to this fraction of its faces first")
+    ap.add_argument("--against", type=Path, default=None, metavar="DIR",
+                    help="the root of another jaxmesh checkout, timed beside this one")
     args = ap.parse_args()
+    if args.against is not None and not (args.against / "jaxmesh" / "__init__.py").is_file():
+        raise SystemExit(f"{args.against}: not the root of a jaxmesh checkout (no jaxmesh/__init__.py)")
     mesh = SHARED / f"{args.mesh}.ply"
     if not mesh.is_file():
         raise SystemExit(f"{mesh}: not found (the shared meshes sit beside the repository)")
@@ -96,23 +108,40 @@ def main() -> None:
         vertices = jaxmesh_module().load(mesh).num_vertices
         seconds([jaxmesh, "noise", str(mesh), str(tmp / "noisy.ply"), "--sigma", "0.3"], setup)
         seconds([jaxmesh, "compress", str(mesh), str(tmp / "mesh.jxm")], setup)
+        runner = [jaxmesh] if args.against is None else [python, "-m", "jaxmesh"]
         table = {"python -c pass (floor)": [python, "-c", "pass"],
                  "python -c 'import jax' (floor)": [python, "-c", "import jax"],
-                 **{f"jaxmesh {name}": [jaxmesh, *words] for name, words in commands(mesh, tmp).items()}}
+                 **{f"jaxmesh {name}": [*runner, *words] for name, words in commands(mesh, tmp).items()}}
         wanted = {w.strip() for w in args.commands.split(",") if w.strip()}
         for name, argv in table.items():
             if wanted and name.removeprefix("jaxmesh ") not in wanted and "floor" not in name:
                 continue
-            cache = tmp / f"cache-{len(rows)}"
-            cold = seconds(argv, cache)
-            warm = statistics.median(seconds(argv, cache) for _ in range(args.repeat))
-            rows.append((name, cold, warm))
-            print(f"{name:32s} cold {cold:6.2f} s   warm {warm:6.2f} s", file=sys.stderr)
+            rows.append((name, *_timings(argv, tmp / f"cache-{len(rows)}", args.repeat,
+                                         None if "floor" in name else args.against)))
+            print(f"{name:32s} " + "   ".join(f"{t:6.2f} s" for t in rows[-1][1:]), file=sys.stderr)
     print(f"\n{args.mesh} ({vertices} vertices): each command a fresh process; warm = median of {args.repeat}\n")
-    print("| command | empty cache | warm cache |")
-    print("|---|---|---|")
-    for name, cold, warm in rows:
-        print(f"| `{name}` | {cold:.2f} s | {warm:.2f} s |")
+    if args.against is None:
+        print("| command | empty cache | warm cache |\n|---|---|---|")
+        for name, cold, warm in rows:
+            print(f"| `{name}` | {cold:.2f} s | {warm:.2f} s |")
+        return
+    print(f"| command | empty cache | warm cache | {args.against}: empty | {args.against}: warm | warm ratio |")
+    print("|---|---|---|---|---|---|")
+    for name, cold, warm, *other in rows:
+        cells = ["", "", ""] if not other else [f"{other[0]:.2f} s", f"{other[1]:.2f} s", f"{warm / other[1]:.2f}"]
+        print(f"| `{name}` | {cold:.2f} s | {warm:.2f} s | " + " | ".join(cells) + " |")
+
+
+def _timings(argv: list[str], cache: Path, repeat: int, against: Path | None) -> tuple[float, ...]:
+    """(cold, warm median) of ``argv`` from this checkout, and with ``against`` the same for that
+    checkout, the two alternating run by run."""
+    if against is None:
+        return seconds(argv, cache), statistics.median(seconds(argv, cache) for _ in range(repeat))
+    runs = {"this": (ROOT, []), "other": (against, [])}
+    for _ in range(repeat + 1):
+        for which, (root, times) in runs.items():
+            times.append(seconds(argv, cache.with_name(f"{cache.name}-{which}"), root))
+    return tuple(x for _, times in runs.values() for x in (times[0], statistics.median(times[1:])))
 
 
 if __name__ == "__main__":

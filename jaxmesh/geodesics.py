@@ -52,7 +52,7 @@ from .geometry import edge_lengths, face_areas, face_corners, hat_gradients, mea
 from .intrinsic import (IntrinsicTriangulation, cotangents_from_lengths, intrinsic_delaunay, layout_from_lengths,
                         replay_flips)
 from .linalg import host_solve, sparse_solve
-from .mesh import Mesh, to_device
+from .mesh import Mesh, as_device_array, to_device
 from .operators import cotangent_weights
 
 __all__ = ["heat_distances", "heat_solver", "heat_components", "BOUNDARY_CONDITIONS", "boundary_vertices"]
@@ -149,10 +149,10 @@ def heat_solver(
         elif triangulation.num_vertices != mesh.num_vertices or triangulation.num_edges != mesh.num_edges:
             raise ValueError("triangulation was built from another mesh (its vertex or edge count differs)")
     t = None if t is None else jnp.asarray(t, mesh.dtype)
-    arrays = None if not intrinsic else tuple(_on_device(z) for z in (
+    arrays = None if not intrinsic else tuple(as_device_array(z) for z in (
         triangulation.faces, triangulation.face_edges, triangulation.flips, triangulation.pairs,
         triangulation.edge_pair))
-    labels = heat_components(mesh) if components is None else _on_device(components)
+    labels = heat_components(mesh) if components is None else as_device_array(components)
     traced = any(isinstance(z, jax.core.Tracer) for z in (mesh.vertices, t))
     # concrete: the matrices once, the solves called from the host
     systems = None if traced else _Systems(*_systems_program(mesh, t, arrays, boundary=boundary))
@@ -183,12 +183,6 @@ def heat_solver(
         return jnp.concatenate(out, axis=0)[:count]
 
     return distances
-
-
-def _on_device(z):
-    """A host array by ``jax.device_put`` (``jnp.asarray`` compiles a program per new shape); a JAX
-    array or a tracer as it is."""
-    return to_device(z) if isinstance(z, np.ndarray) else jnp.asarray(z)
 
 
 def _check_boundary(boundary) -> None:

@@ -133,6 +133,12 @@ def to_device(a: np.ndarray | dict[str, np.ndarray], dtype=None) -> Array | dict
     return jax.device_put(np.asarray(a, dtype=target))
 
 
+def as_device_array(a) -> Array:
+    """A numpy array by :func:`to_device`; anything else (a JAX array, a tracer, a list) by
+    ``jnp.asarray``."""
+    return to_device(a) if isinstance(a, np.ndarray) else jnp.asarray(a)
+
+
 def _validate_vertices(vertices) -> np.ndarray:
     v = np.asarray(vertices)
     if v.dtype == object:
@@ -321,7 +327,7 @@ class Mesh:
     # ------------------------------------------------------------------ moves
     def with_vertices(self, vertices) -> "Mesh":
         """Same connectivity, new positions of shape (*batch, V, 3). O(1), jittable."""
-        x = to_device(vertices) if isinstance(vertices, np.ndarray) else jnp.asarray(vertices)
+        x = as_device_array(vertices)
         if x.ndim < 2 or x.shape[-2:] != (self.num_vertices, 3):
             raise ValueError(
                 f"vertices must have shape (*batch, {self.num_vertices}, 3), got {x.shape}"
@@ -358,7 +364,7 @@ class Mesh:
         theirs, other_tree = jax.tree_util.tree_flatten(other)
         return tree == other_tree and all(_leaf_equal(a, b) for a, b in zip(mine, theirs))
 
-    __hash__ = None    # mutable arrays inside: unhashable, as an array is
+    __hash__ = None    # unhashable, as its arrays are
 
     def __repr__(self) -> str:  # short: the default would print every array
         batch = f", batch={self.batch_shape}" if self.batch_shape else ""

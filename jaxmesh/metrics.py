@@ -18,7 +18,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .geometry import face_normals
-from .mesh import Mesh, to_device
+from .mesh import Mesh, as_device_array
 from .operators import gradient_magnitude, umbrella
 from ._private import lift, safe_divide, safe_norm, segment_sum_rows
 
@@ -39,8 +39,7 @@ CAUCHY_C = 2.3849
 
 
 def _positions(reference: Mesh, estimate) -> Float[Array, "*batch V 3"]:
-    x = (estimate.vertices if isinstance(estimate, Mesh) else
-         to_device(estimate) if isinstance(estimate, np.ndarray) else jnp.asarray(estimate))
+    x = estimate.vertices if isinstance(estimate, Mesh) else as_device_array(estimate)
     if x.shape[-2:] != (reference.num_vertices, 3):
         raise ValueError(
             f"estimate must have {reference.num_vertices} vertices (same connectivity as "

@@ -45,7 +45,6 @@ import functools
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-import numpy as np
 from jaxtyping import Array, Float
 
 from .._exported import stored_jit
@@ -58,7 +57,7 @@ from ..denoise.impulse_repair import impulse_repair
 from ..denoise.normal_filtering import ring_sum
 from ..denoise.vertex_update import vertex_update
 from ..geometry import face_areas, face_normals, mean_edge_length, vertex_normals
-from ..mesh import Mesh, to_device
+from ..mesh import Mesh, as_device_array
 from ..operators import taubin_pair, umbrella
 
 __all__ = ["ModelConfig", "LearnedDenoiser", "init_model", "roughness_features", "stage_parameters",
@@ -329,12 +328,7 @@ def fill_weights(template, weights):
     replaced by ``weights``."""
     flat, treedef = jax.tree_util.tree_flatten(template)
     it = iter(weights)
-    return jax.tree_util.tree_unflatten(treedef, [_on_device(next(it)) if is_weight(x) else x for x in flat])
-
-
-def _on_device(w):
-    """A weight read from a file by ``jax.device_put`` (``jnp.asarray`` compiles a program per shape)."""
-    return to_device(w) if isinstance(w, np.ndarray) else jnp.asarray(w)
+    return jax.tree_util.tree_unflatten(treedef, [as_device_array(next(it)) if is_weight(x) else x for x in flat])
 
 
 @functools.lru_cache(maxsize=8)
