@@ -61,7 +61,8 @@ def seconds(argv: list[str], cache: Path, root: Path | None = None) -> float:
     ``root`` when given)."""
     env = {**os.environ, "JAXMESH_CACHE_DIR": str(cache), **({"PYTHONPATH": str(root)} if root else {})}
     start = time.perf_counter()
-    done = subprocess.run(argv, env=env, capture_output=True, text=True)
+    # run from the scratch folder: `python -m` puts the working folder ahead of PYTHONPATH
+    done = subprocess.run(argv, env=env, capture_output=True, text=True, cwd=cache.parent)
     took = time.perf_counter() - start
     if done.returncode != 0:
         raise SystemExit(f"{' '.join(argv)} failed ({done.returncode}):\n{done.stderr[-2000:]}")
