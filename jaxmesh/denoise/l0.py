@@ -130,7 +130,7 @@ def _pair_products(coef):
     return (coef[:, jnp.asarray(_PAIR_K)] * coef[:, jnp.asarray(_PAIR_L)]).reshape(-1)
 
 
-def _cg_solve(idx, coef, r_idx, r_coef, alpha_k, beta, diag, rhs, start, cg):
+def _cg_solve(idx, coef, r_idx, r_coef, alpha_k, beta, diag, rhs, start):
     """(I + α RᵀR + β DᵀD) p = rhs by matrix-free CG from ``start``, Jacobi-preconditioned by
     ``diag`` (the start and the preconditioner change the path, not the solution: no gradient
     through them)."""
@@ -149,6 +149,7 @@ def _cg_solve(idx, coef, r_idx, r_coef, alpha_k, beta, diag, rhs, start, cg):
         lx.DiagonalLinearOperator(jnp.broadcast_to(1 / jax.lax.stop_gradient(diag)[:, None], rhs.shape)),
         lx.positive_semidefinite_tag)
     options = {"y0": jax.lax.stop_gradient(start), "preconditioner": pre}
+    cg = lx.CG(rtol=1e-5, atol=0.0, max_steps=1000)
     return lx.linear_solve(op, rhs, cg, options=options, throw=False).value
 
 
@@ -180,9 +181,6 @@ def _l0_single(mesh: Mesh, graph: FaceGraph, p_star, lam, alpha, iterations: int
     r_coef = jnp.where(graph.edge_mask[:, None], jnp.asarray(_R_COEF, p_star.dtype), 0)
     # what every step shares: the stencils (they depend on the connectivity alone) and R's part
     r_squares, pairs, r_products = _squares(r_idx, r_coef, nv), _stencil_pairs(r_idx), _pair_products(r_coef)
-    import lineax as lx  # here, not at the top: the commands that never solve with it do not import lineax
-
-    cg = lx.CG(rtol=1e-5, atol=0.0, max_steps=1000)
 
     def step(k, p):
         beta = BETA_START * ratio ** (k + 1).astype(p.dtype)
@@ -195,7 +193,7 @@ def _l0_single(mesh: Mesh, graph: FaceGraph, p_star, lam, alpha, iterations: int
         diag = 1 + alpha_k * r_squares + beta * _squares(idx, coef, nv)      # of I + α RᵀR + β DᵀD
         if solver == "cholesky":
             return sparse_solve(pairs, diag, alpha_k * r_products + beta * _pair_products(coef), rhs)
-        return _cg_solve(idx, coef, r_idx, r_coef, alpha_k, beta, diag, rhs, p, cg)
+        return _cg_solve(idx, coef, r_idx, r_coef, alpha_k, beta, diag, rhs, p)
 
     return iterate(step, p_star, iterations, indexed=True)
 
