@@ -190,10 +190,17 @@ def key_argument(key):
     into ``jax.random.PRNGKey(seed)`` inside a program (made eagerly, the key costs programs of its
     own); a seed outside the integer type's range as ``PRNGKey(seed)`` itself."""
     if isinstance(key, int):
-        dtype = np.int64 if jax.config.jax_enable_x64 else np.int32
-        info = np.iinfo(dtype)
-        return np.asarray(key, dtype) if info.min <= key <= info.max else jax.random.PRNGKey(key)
+        seed = seed_array(key)
+        return seed if seed is not None else jax.random.PRNGKey(key)
     return key
+
+
+def seed_array(seed: int) -> np.ndarray | None:
+    """The int ``seed`` as the integer array JAX's key functions make of it (int64 with 64-bit types
+    on, else int32); None where it lies outside that type's range."""
+    dtype = np.int64 if jax.config.jax_enable_x64 else np.int32
+    info = np.iinfo(dtype)
+    return np.asarray(seed, dtype) if info.min <= seed <= info.max else None
 
 
 def seed_key(k):

@@ -39,6 +39,7 @@ import numpy as np
 
 from .. import sparse as jsparse
 from .._exported import stored_jit
+from .._private import seed_array
 from ..mesh import Mesh, to_device
 from ._graph import single
 
@@ -184,7 +185,10 @@ def _seed_array(seed) -> np.ndarray:
     """``seed`` as the integer array ``jax.random.key`` makes of it (int64 with 64-bit types on)."""
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
         raise ValueError(f"seed must be an int, got {seed!r}")
-    return np.asarray(seed, np.int64 if jax.config.jax_enable_x64 else np.int32)
+    array = seed_array(int(seed))
+    if array is None:
+        raise ValueError(f"seed {seed} does not fit in {'int64' if jax.config.jax_enable_x64 else 'int32'}")
+    return array
 
 
 def spectral_density(mesh: Mesh, kind: str = "combinatorial", moments: int = MOMENTS, probes: int = PROBES,
