@@ -193,7 +193,8 @@ def test_ring_tiers_are_the_cheapest_split_and_cover_every_face():
 def test_a_large_tier_in_blocks_gives_what_one_pass_gives(monkeypatch):
     """The largest normal difference of a tier past ``_ONE_PASS_ROWS`` rows goes in blocks
     (the last one padded): thresholds lowered here so the UV sphere's tiers take both paths,
-    alone and batched; the same values (to the rounding of the products' fused multiply-adds) and gradient."""
+    alone and batched; the same values (to the rounding of the products' fused multiply-adds), and the
+    spreads' gradient."""
     from jaxmesh.denoise import guided
 
     uv = trimesh.creation.uv_sphere(count=[12, 12])
@@ -202,19 +203,23 @@ def test_a_large_tier_in_blocks_gives_what_one_pass_gives(monkeypatch):
     rng = np.random.default_rng(1)
     n = np.asarray(jaxmesh.geometry.face_normals(mesh)) + 0.2 * rng.standard_normal((2, mesh.num_faces, 3))
     n = jnp.asarray(n / np.linalg.norm(n, axis=-1, keepdims=True))
+
+    def fresh():        # traced anew (a new function), so the thresholds are read when it runs
+        return jax.jit(lambda graph, x: patch_inconsistency.__wrapped__(graph, x))
+
+    def grad():         # of the largest tier's spreads, eager: compiled under the suite's XLA flags, the two
+        # programs' gradients of the max parted at a few faces (their rounding broke ties apart)
+        return jax.grad(lambda x: jnp.sum(guided._largest_difference(x, g.tiers[0]) ** 2))
+
     one_pass = [patch_inconsistency(g, n[0]), patch_inconsistency(g, n)]
-    grad = jax.grad(lambda x: jnp.sum(patch_inconsistency(g, x) ** 2))
-    one_pass_grad = grad(n[0])
+    one_pass_grad = grad()(n[0])
     monkeypatch.setattr(guided, "_ONE_PASS_ROWS", 7)
     monkeypatch.setattr(guided, "_BLOCK_ROWS", 5)          # blocks of 5 faces alone, of 2 in a batch of 2
-    jax.clear_caches()                                     # traced again with the thresholds lowered
     assert any(t.ring.shape[0] % 5 for t in g.tiers)       # a padded last block
-    for got, want in ((patch_inconsistency(g, n[0]), one_pass[0]), (patch_inconsistency(g, n), one_pass[1]),
-                      (jax.jit(patch_inconsistency)(g, n), one_pass[1])):
+    for got, want in ((fresh()(g, n[0]), one_pass[0]), (fresh()(g, n), one_pass[1])):
         assert got.shape == want.shape
         np.testing.assert_allclose(got, want, rtol=1e-13, atol=1e-15)     # the same products, fused apart
-    np.testing.assert_allclose(grad(n[0]), one_pass_grad, rtol=1e-12, atol=1e-14)
-    jax.clear_caches()                                     # no program with the lowered thresholds kept
+    np.testing.assert_allclose(grad()(n[0]), one_pass_grad, rtol=1e-12, atol=1e-14)
 
 
 def test_face_graph_needs_the_host(sphere):
