@@ -29,8 +29,8 @@ Both systems go through :func:`jaxmesh.linalg.sparse_solve`: factored once per m
 (and per boundary condition), every source is one more right-hand side, and the
 distances are differentiable in ``mesh.vertices`` (and ``t``) through implicit
 differentiation of both solves.  On concrete inputs the matrices are built once for
-every block of sources and the solves are called from the host
-(:func:`jaxmesh.linalg.host_solve`) between compiled stages, the same functions: a
+every block of sources, each factored once for all of them, and the solves are called from
+the host (:func:`jaxmesh.linalg.host_factor`) between compiled stages, the same functions: a
 program with a host callback inside is compiled again in every process, these are
 kept in the persistent compilation cache.
 """
@@ -51,7 +51,7 @@ from ._private import filled_mass, one_program, safe_norm, segment_sum_scalars
 from .geometry import edge_lengths, face_areas, face_corners, hat_gradients, mean_edge_length
 from .intrinsic import (IntrinsicTriangulation, cotangents_from_lengths, intrinsic_delaunay, layout_from_lengths,
                         replay_flips)
-from .linalg import host_solve, sparse_solve
+from .linalg import host_factor, sparse_solve
 from .mesh import Mesh, as_device_array, to_device
 from .operators import cotangent_weights
 
@@ -157,11 +157,12 @@ def heat_solver(
     # concrete: the matrices once, the solves called from the host
     systems = None if traced else _Systems(*_systems_program(mesh, t, arrays, boundary=boundary))
     poisson = None if traced else _poisson_program(systems, labels)
+    solve = None if traced else _host_solver(systems, backend)
 
     def run(part):
         if systems is None or isinstance(part, jax.core.Tracer):
             return _heat(mesh, part, t, arrays, labels, boundary=boundary, backend=backend)
-        return _heat_on_host(systems, poisson, part, labels, boundary=boundary, backend=backend)
+        return _steps(systems, poisson, part, labels, boundary=boundary, solve=solve, stages=_STAGE_PROGRAMS)
 
     def distances(sources, block: int = 64) -> Float[Array, "S V"]:
         _check_block(block)
@@ -357,7 +358,7 @@ def _steps(s: _Systems, poisson: tuple, sources, labels, *, boundary: str, solve
 def _heat(mesh: Mesh, sources, t, triangulation, labels, *, boundary: str, backend: str):
     """:func:`_steps` for one block of sources as one program, differentiable (the solves
     are :func:`sparse_solve`'s host callbacks).  It runs where the positions (or t) are
-    traced; concrete inputs go through :func:`_heat_on_host`, the same steps."""
+    traced; concrete inputs run the same steps with the host solves of :func:`_host_solver`."""
     s = _systems(mesh, t, triangulation, boundary=boundary)
 
     def solve(diag, off, rhs, laplacian=False):
@@ -381,11 +382,18 @@ _STAGE_PROGRAMS = (stored_jit(_deltas, static_argnames=("n", "dtype")),
                    stored_jit(_divergence, static_argnames=("boundary",)), stored_jit(_shifted))
 
 
-def _heat_on_host(s: _Systems, poisson: tuple, sources, labels, *, boundary: str, backend: str):
-    """:func:`_steps` for concrete inputs, given the block-independent systems ``s`` and
-    ``poisson``: the stored stage programs, the solves called from the host between them."""
-    def solve(diag, off, rhs, laplacian=False):
-        return jnp.asarray(host_solve(s.pairs, diag, off, rhs, backend=backend, laplacian=laplacian),
-                           s.heat_diag.dtype)
+def _host_solver(s: _Systems, backend: str):
+    """``solve(diag, off, rhs, laplacian)`` from the host for the systems of ``s``: each matrix
+    factored (:func:`~jaxmesh.linalg.host_factor`) at its first solve and kept for the next
+    blocks, found by the identity of its arrays (held by ``s`` while the solver lives)."""
+    factors: dict = {}
 
-    return _steps(s, poisson, sources, labels, boundary=boundary, solve=solve, stages=_STAGE_PROGRAMS)
+    def solve(diag, off, rhs, laplacian=False):
+        key = (id(diag), id(off), laplacian)
+        factor = factors.get(key)
+        if factor is None:
+            factor = factors[key] = host_factor(s.pairs, diag, off, backend=backend, laplacian=laplacian)
+        return jnp.asarray(factor(rhs), s.heat_diag.dtype)
+
+    return solve
+

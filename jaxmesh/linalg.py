@@ -59,8 +59,8 @@ from jaxtyping import Array, Float, Int
 from ._private import one_program
 from .mesh import Mesh
 
-__all__ = ["sparse_solve", "sparse_matvec", "mesh_solve", "host_solve", "BACKENDS", "default_backend",
-           "clear_factor_cache"]
+__all__ = ["sparse_solve", "sparse_matvec", "mesh_solve", "host_solve", "host_factor", "BACKENDS",
+           "default_backend", "clear_factor_cache"]
 
 BACKENDS = ("auto", "cholesky", "lu")
 _CACHE_SIZE = 16
@@ -126,8 +126,7 @@ def sparse_solve(
 
     Returns:
         x, the shape and dtype of ``b``."""
-    if backend not in BACKENDS:
-        raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
+    _check_backend(backend)
     resolved = default_backend() if backend == "auto" else backend
     if edges.ndim != 2 or edges.shape[-1] != 2:
         raise ValueError(f"edges must have shape (E, 2), got {edges.shape}")
@@ -191,15 +190,41 @@ def host_solve(edges, diagonal, edge_values, b, *, backend: Literal["auto", "cho
 
     Returns:
         x, float64, the shape of ``b``."""
-    if backend not in BACKENDS:
-        raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
+    _check_backend(backend)
+    return host_factor(edges, diagonal, edge_values, backend=backend, laplacian=laplacian)(b)
+
+
+def host_factor(edges, diagonal, edge_values, *, backend: Literal["auto", "cholesky", "lu"] = "auto",
+                laplacian: bool = False):
+    """:func:`host_solve` for one matrix, factored (or found in the factor cache) here once: ``solve(b)``
+    then costs only its solves, where each :func:`host_solve` call hashes the matrix to find its factor.
+
+    Arguments:
+        edges: undirected edges (i, j), (E, 2).
+        diagonal: d, (n,).
+        edge_values: a, one per edge, (E,).
+        backend: as :func:`sparse_solve`.
+        laplacian: as :func:`sparse_solve`.
+
+    Returns:
+        ``solve(b)``: x = A⁻¹ b, float64, the shape of ``b`` ((n,) or (n, k))."""
+    _check_backend(backend)
     e, a = np.asarray(edges), np.asarray(edge_values)
     factor = _factor(e, _host_diagonal(e, np.asarray(diagonal), a, laplacian), a,
                      default_backend() if backend == "auto" else backend)
-    x = factor.solve(np.asarray(b))
-    with _lock:
-        _stats["solves"] += 1
-    return x
+
+    def solve(b) -> np.ndarray:
+        x = factor.solve(np.asarray(b))
+        with _lock:
+            _stats["solves"] += 1
+        return x
+
+    return solve
+
+
+def _check_backend(backend) -> None:
+    if backend not in BACKENDS:
+        raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
 
 
 def _host_diagonal(edges: np.ndarray, diagonal: np.ndarray, values: np.ndarray, laplacian: bool) -> np.ndarray:

@@ -73,7 +73,7 @@ def test_a_pair_given_twice_is_summed_on_both_sides_of_the_solve(system, backend
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
-def test_host_solve_equals_scipy_in_numpy_and_refuses_what_sparse_solve_refuses(system, backend):
+def test_host_solve_and_factor_equal_scipy_in_numpy_and_refuse_what_sparse_solve_refuses(system, backend):
     mesh, d, a, b = system
     e, d, a, b = (np.asarray(z) for z in (mesh.edges, d, a, b))
     x = linalg.host_solve(e, d, a, b, backend=backend)
@@ -87,6 +87,14 @@ def test_host_solve_equals_scipy_in_numpy_and_refuses_what_sparse_solve_refuses(
     if backend != "lu":
         with pytest.raises(ValueError, match="not positive definite"):
             linalg.host_solve(e, -d, a, b, backend=backend)
+    # factored once, solved many times: the same answers, one factorization for all of them
+    linalg.clear_factor_cache()
+    solve = linalg.host_factor(e, np.full(len(d), 0.5), a, backend=backend, laplacian=True)
+    np.testing.assert_array_equal(solve(b[:, 0]), lap)
+    np.testing.assert_allclose(solve(2 * b), 2 * spla.spsolve(scipy_matrix(e, 0.5 - sums, a), b), rtol=1e-10,
+                               atol=1e-12)
+    assert linalg.clear_factor_cache() == {"factorizations": 1, "solves": 2}
+    assert_refused(linalg.host_factor, e, d, a, backend="qr", param="backend", message="backend must be one of")
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
