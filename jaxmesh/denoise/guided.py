@@ -59,7 +59,7 @@ def _ring_spread(normals: Float[Array, "*batch F 3"], ring: Int[Array, "W k"],
                  ring_mask: Bool[Array, "W k"]) -> Float[Array, "*batch W"]:
     """max_{a,b} ‖n_a − n_b‖² = max (2 − 2 n_a · n_b) over the pairs of each row's ring: every
     product n_a · n_b (k × k per face, written out by component) in one fused loop, no pair
-    list gathered (3-4x faster on CPU than the k(k+1)/2 pairs a ≤ b gathered from the ring, and
+    list gathered (2-4x faster on CPU than the k(k+1)/2 pairs a ≤ b gathered from the ring, and
     a batched (k, 3) @ (3, k) matmul per face is slower still)."""
     r = normals[..., ring, :]                                              # (*b, W, k, 3)
     dots = sum(r[..., :, None, c] * r[..., None, :, c] for c in range(3))  # (*b, W, k, k)
