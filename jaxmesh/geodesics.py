@@ -385,7 +385,8 @@ _STAGE_PROGRAMS = (stored_jit(_deltas, static_argnames=("n", "dtype")),
 def _host_solver(s: _Systems, backend: str):
     """``solve(diag, off, rhs, laplacian)`` from the host for the systems of ``s``: each matrix
     factored (:func:`~jaxmesh.linalg.host_factor`) at its first solve and kept for the next
-    blocks, found by the identity of its arrays (held by ``s`` while the solver lives)."""
+    blocks, found by the identity of its arrays (those of ``s`` and of the Poisson system, which
+    :func:`heat_solver`'s closure holds as long as this solver)."""
     factors: dict = {}
 
     def solve(diag, off, rhs, laplacian=False):
