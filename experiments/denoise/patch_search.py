@@ -3,7 +3,7 @@ choice the whole mesh's, and what does it save?
 
     .venv/bin/python experiments/denoise/patch_search.py [--meshes bunny] [--search-vertices 2000]
         [--draws independent|pairs] [--ranking-draws 2]
-        [--keys 0 1 2] [--reuse-whole]
+        [--keys 0 1 2] [--margin 2] [--reuse-whole]
 
 For each mesh (unit bounding-box diagonal) × σ ∈ {0.1, 0.3, 0.5}ℓ̄ × both noise
 models (isotropic; along the clean normals), seed 0: ``choose_denoiser`` ranked
@@ -13,7 +13,10 @@ face-normal error of each output against the clean mesh, their ratio, and the
 wall-clock time of each call (2 CPU cores here; the first cell's times include
 compiling).  ``--draws`` sets the recorruptions of the patch ranking:
 independent (the library's default) or antithetic pairs; ``--ranking-draws``
-their number (``choose_denoiser(draws=)``, default 2, the library's).  ``--keys``: the
+their number (``choose_denoiser(draws=)``, default 2, the library's).  ``--margin``
+the rings around each core (:data:`~jaxmesh.tune.patches.PATCH_MARGIN`, which
+``choose_denoiser`` does not take: the script hands it to the chooser's
+``sample_patches``).  ``--keys``: the
 chooser's keys for the patch ranking (each draws its own patches and
 recorruptions; the whole mesh is ranked with key 0): with several, each cell
 gives the mean error over the keys and the worst key's ratio, since one draw of
@@ -22,14 +25,15 @@ The whole-mesh results are saved to ``patch_search_whole.json``;
 ``--reuse-whole`` reads them from there instead of recomputing them (they do
 not depend on the patch ranking's options; rerun without it
 after a change to the chooser).  Writes
-experiments/results/denoise/patch_search[_DRAWS][_dN][_svN][_keysK].md (``_dN`` for N
-ranking draws other than 2, ``_svN`` for a ``--search-vertices`` other than the
+experiments/results/denoise/patch_search[_DRAWS][_dN][_mN][_svN][_keysK].md (``_dN`` for N
+ranking draws other than 2, ``_mN`` for N margin rings other than the library's, ``_svN`` for a ``--search-vertices`` other than the
 library's, ``_keysK`` for K keys).
 """
 
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import sys
 import time
@@ -43,7 +47,8 @@ jax.config.update("jax_enable_x64", True)
 import jaxmesh  # noqa: E402
 from jaxmesh.metrics import mean_normal_angle_error  # noqa: E402
 from jaxmesh.tune import choose_denoiser  # noqa: E402
-from jaxmesh.tune.patches import SEARCH_VERTICES  # noqa: E402
+from jaxmesh.tune import auto  # noqa: E402
+from jaxmesh.tune.patches import PATCH_MARGIN, SEARCH_VERTICES, sample_patches  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from shared_meshes import load  # noqa: E402
@@ -65,14 +70,17 @@ def main() -> None:
     ap.add_argument("--search-vertices", type=int, default=SEARCH_VERTICES)
     ap.add_argument("--draws", choices=sorted(DRAWS), default="independent")
     ap.add_argument("--ranking-draws", type=int, default=2, help="the patch ranking's recorruptions (default 2)")
+    ap.add_argument("--margin", type=int, default=PATCH_MARGIN, help=f"rings around each core (default {PATCH_MARGIN})")
     ap.add_argument("--keys", nargs="+", type=int, default=[0], help="the patch ranking's keys (default 0)")
     ap.add_argument("--reuse-whole", action="store_true", help="read the whole-mesh results from the last full run")
     args = ap.parse_args()
+    if args.margin != PATCH_MARGIN:      # the chooser draws its patches through this name
+        auto.sample_patches = functools.partial(sample_patches, margin=args.margin)
     saved = RESULTS / "patch_search_whole.json"
     whole = json.loads(saved.read_text()) if args.reuse_whole else {}
     keys = f"keys {', '.join(map(str, args.keys))}"
-    lines = [f"# Patch search (search_vertices={args.search_vertices}, {args.ranking_draws} {args.draws} draws, "
-             f"{keys}) against the whole-mesh search", "",
+    lines = [f"# Patch search (search_vertices={args.search_vertices}, margin {args.margin}, {args.ranking_draws} "
+             f"{args.draws} draws, {keys}) against the whole-mesh search", "",
              "| mesh | σ/ℓ̄ | model | whole ° | patches ° (mean) | ratio (mean) | worst key's ratio | whole s | "
              "patches s (mean) | searched V |",
              "|---|---|---|---|---|---|---|---|---|---|"]
@@ -102,6 +110,7 @@ def main() -> None:
     saved.write_text(json.dumps(whole, indent=1))
     suffix = (("" if args.draws == "independent" else f"_{args.draws}")
               + ("" if args.ranking_draws == 2 else f"_d{args.ranking_draws}")
+              + ("" if args.margin == PATCH_MARGIN else f"_m{args.margin}")
               + ("" if args.search_vertices == SEARCH_VERTICES else f"_sv{args.search_vertices}")
               + ("" if args.keys == [0] else f"_keys{len(args.keys)}"))
     (RESULTS / f"patch_search{suffix}.md").write_text("\n".join(lines) + "\n")
