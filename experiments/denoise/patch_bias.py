@@ -17,6 +17,9 @@ the core vertices (per noise dimension) over σ, the noise estimate read on the
 patch mesh over the one read on the whole mesh, the least estimated risk of the
 ranking (its draws) and of the choice (the blend's draws), the choice's true
 mean normal error and the choice; then the same on the whole mesh (key 0).
+A second table says where each key's extra error lies: the faces in bands of
+hop distance from the mesh's boundary (its holes), each band's share of the
+faces and of the summed excess angle Σ_f (θ_f(patch choice) − θ_f(whole choice)).
 Writes experiments/results/denoise/patch_bias.md.
 """
 
@@ -31,10 +34,12 @@ import jax
 jax.config.update("jax_enable_x64", True)
 
 import numpy as np  # noqa: E402
+import scipy.sparse as sp  # noqa: E402
+from scipy.sparse import csgraph  # noqa: E402
 
 import jaxmesh  # noqa: E402
 from jaxmesh._private import PATCH_STREAM, library_key  # noqa: E402
-from jaxmesh.geometry import mean_edge_length  # noqa: E402
+from jaxmesh.geometry import face_normals, mean_edge_length  # noqa: E402
 from jaxmesh.metrics import mean_normal_angle_error  # noqa: E402
 from jaxmesh.tune import choose_denoiser, estimate_noise, sample_patches  # noqa: E402
 from jaxmesh.tune.patches import SEARCH_VERTICES  # noqa: E402
@@ -43,6 +48,28 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from shared_meshes import load  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parents[2] / "experiments" / "results" / "denoise"
+#: the bands of hop distance from the mesh's boundary of the second table
+BANDS = ((0, 3), (3, 10), (10, 30), (30, None))
+
+
+def boundary_hops(mesh) -> np.ndarray:
+    """Each face's least hop distance (over its vertices) from a boundary vertex; inf without a boundary."""
+    f = np.asarray(mesh.faces)
+    e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    edges, count = np.unique(e, axis=0, return_counts=True)
+    ends = np.unique(edges[count == 1])
+    if not len(ends):
+        return np.full(len(f), np.inf)
+    v = mesh.num_vertices
+    a = sp.coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(v, v)).tocsr()
+    hops = csgraph.dijkstra(a, directed=False, unweighted=True, indices=ends, min_only=True)
+    return hops[f].min(axis=1)
+
+
+def face_angles(clean, mesh) -> np.ndarray:
+    """θ_f: each face's normal angle to the clean one, degrees."""
+    dots = np.sum(np.asarray(face_normals(clean)) * np.asarray(face_normals(mesh)), axis=1)
+    return np.degrees(np.arccos(np.clip(dots, -1.0, 1.0)))
 
 
 def describe(result) -> str:
@@ -77,6 +104,13 @@ def main() -> None:
              "Regenerate: `.venv/bin/python experiments/denoise/patch_bias.py` (needs ../shared/meshes).", "",
              "| σ/ℓ̄ | model | ranked on | core noise RMS / σ | σ̂ patches / σ̂ whole | ranking's least risk | "
              "choice's risk | error ° | choice |", "|---|---|---|---|---|---|---|---|---|"]
+    hops = boundary_hops(clean)
+    bands = [(hops >= lo) & (hops < (np.inf if hi is None else hi)) for lo, hi in BANDS]
+    names = [f"{lo}–{hi}" if hi is not None else f"{lo}+" for lo, hi in BANDS]
+    where = ["", "Where each key's extra error lies, by the faces' hop distance from the mesh's boundary: each band's "
+             "share of the faces, then of the summed excess angle of the patch choice over the whole mesh's.", "",
+             "| σ/ℓ̄ | model | key | excess ° (mean) | " + " | ".join(f"{n} rings: faces / excess" for n in names) + " |",
+             "|---|---|---|---|" + "---|" * len(names)]
     for spec in args.cells:
         sigma, model = float(spec.split(":")[0]), spec.split(":")[1]
         noisy = jaxmesh.add_noise(clean, sigma, 0, along_normals=model == "nor")
@@ -84,6 +118,8 @@ def main() -> None:
         whole_sigma = estimate_noise(noisy)
         everywhere = float(np.sqrt(np.sum(np.asarray(noisy.vertices - clean.vertices) ** 2)
                                    / (noisy.num_vertices * dims)))
+        whole = choose_denoiser(noisy, search_vertices=None)
+        whole_angles = face_angles(clean, whole.mesh)
         for key in args.keys:
             rms, patches = core_noise(noisy, clean, key, dims)
             r = choose_denoiser(noisy, key=key)
@@ -92,13 +128,15 @@ def main() -> None:
                          f"{estimate_noise(patches.mesh) / whole_sigma:.3f} | {r.table[0].risk:.4f} | {r.risk:.4f} | "
                          f"{e:.3f} | {describe(r)} |")
             print(lines[-1], flush=True)
-        r = choose_denoiser(noisy, search_vertices=None)
-        e = float(mean_normal_angle_error(clean, r.mesh))
+            excess = face_angles(clean, r.mesh) - whole_angles
+            shares = [f"{b.mean():.3f} / {excess[b].sum() / excess.sum():.3f}" for b in bands]
+            where.append(f"| {sigma} | {model} | {key} | {excess.mean():.3f} | " + " | ".join(shares) + " |")
+        e = float(mean_normal_angle_error(clean, whole.mesh))
         lines.append(f"| {sigma} | {model} | whole mesh | {everywhere / (sigma * ell):.3f} | 1 | "
-                     f"{r.table[0].risk:.4f} | {r.risk:.4f} | {e:.3f} | {describe(r)} |")
+                     f"{whole.table[0].risk:.4f} | {whole.risk:.4f} | {e:.3f} | {describe(whole)} |")
         print(lines[-1], flush=True)
     RESULTS.mkdir(parents=True, exist_ok=True)
-    (RESULTS / "patch_bias.md").write_text("\n".join(lines) + "\n")
+    (RESULTS / "patch_bias.md").write_text("\n".join(lines + where) + "\n")
 
 
 if __name__ == "__main__":
