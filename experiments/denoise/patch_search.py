@@ -13,20 +13,21 @@ face-normal error of each output against the clean mesh, their ratio, and the
 wall-clock time of each call (2 CPU cores here; the first cell's times include
 compiling).  ``--draws`` sets the recorruptions of the patch ranking:
 independent (the library's default) or antithetic pairs; ``--ranking-draws``
-their number (``choose_denoiser(draws=)``, default 2, the library's).  ``--margin``
-the rings around each core (:data:`~jaxmesh.tune.patches.PATCH_MARGIN`, which
-``choose_denoiser`` does not take: the script hands it to the chooser's
-``sample_patches``).  ``--keys``: the
+their number (``choose_denoiser(draws=)``, default 2, the library's).
+``--margin``: the rings around each core
+(:data:`~jaxmesh.tune.patches.PATCH_MARGIN`, which ``choose_denoiser`` does not
+take: the script hands it to the chooser's ``sample_patches``).  ``--keys``: the
 chooser's keys for the patch ranking (each draws its own patches and
 recorruptions; the whole mesh is ranked with key 0): with several, each cell
 gives the mean error over the keys and the worst key's ratio, since one draw of
 the patches moves the ratio by a few percent.
 The whole-mesh results are saved to ``patch_search_whole.json``;
 ``--reuse-whole`` reads them from there instead of recomputing them (they do
-not depend on the patch ranking's options; rerun without it
-after a change to the chooser).  Writes
-experiments/results/denoise/patch_search[_DRAWS][_dN][_mN][_svN][_keysK].md (``_dN`` for N
-ranking draws other than 2, ``_mN`` for N margin rings other than the library's, ``_svN`` for a ``--search-vertices`` other than the
+not depend on the patch ranking's options; rerun without it after a change to
+the chooser).  Writes
+experiments/results/denoise/patch_search[_DRAWS][_dN][_mN][_svN][_keysK].md
+(``_dN`` for N ranking draws other than 2, ``_mN`` for N margin rings other
+than the library's, ``_svN`` for a ``--search-vertices`` other than the
 library's, ``_keysK`` for K keys).
 """
 
@@ -46,8 +47,7 @@ jax.config.update("jax_enable_x64", True)
 
 import jaxmesh  # noqa: E402
 from jaxmesh.metrics import mean_normal_angle_error  # noqa: E402
-from jaxmesh.tune import choose_denoiser  # noqa: E402
-from jaxmesh.tune import auto  # noqa: E402
+from jaxmesh.tune import auto, choose_denoiser  # noqa: E402
 from jaxmesh.tune.patches import PATCH_MARGIN, SEARCH_VERTICES, sample_patches  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
