@@ -109,7 +109,8 @@ def main() -> None:
     names = [f"{lo}–{hi}" if hi is not None else f"{lo}+" for lo, hi in BANDS]
     where = ["", "Where each key's extra error lies, by the faces' hop distance from the mesh's boundary: each band's "
              "share of the faces, then of the summed excess angle of the patch choice over the whole mesh's.", "",
-             "| σ/ℓ̄ | model | key | excess ° (mean) | " + " | ".join(f"{n} rings: faces / excess" for n in names) + " |",
+             "| σ/ℓ̄ | model | key | excess ° (mean) | "
+             + " | ".join(f"{n} rings: faces / excess" for n in names) + " |",
              "|---|---|---|---|" + "---|" * len(names)]
     for spec in args.cells:
         sigma, model = float(spec.split(":")[0]), spec.split(":")[1]
