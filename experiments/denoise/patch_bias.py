@@ -34,7 +34,6 @@ import jax
 jax.config.update("jax_enable_x64", True)
 
 import numpy as np  # noqa: E402
-import scipy.sparse as sp  # noqa: E402
 from scipy.sparse import csgraph  # noqa: E402
 
 import jaxmesh  # noqa: E402
@@ -42,6 +41,8 @@ from jaxmesh._private import PATCH_STREAM, library_key  # noqa: E402
 from jaxmesh.geometry import face_normals, mean_edge_length  # noqa: E402
 from jaxmesh.metrics import mean_normal_angle_error  # noqa: E402
 from jaxmesh.tune import choose_denoiser, estimate_noise, sample_patches  # noqa: E402
+from jaxmesh.sparse import adjacency_matrix  # noqa: E402
+from jaxmesh.topology import boundary_edges  # noqa: E402
 from jaxmesh.tune.patches import SEARCH_VERTICES  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
@@ -54,16 +55,11 @@ BANDS = ((0, 3), (3, 10), (10, 30), (30, None))
 
 def boundary_hops(mesh) -> np.ndarray:
     """Each face's least hop distance (over its vertices) from a boundary vertex; inf without a boundary."""
-    f = np.asarray(mesh.faces)
-    e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
-    edges, count = np.unique(e, axis=0, return_counts=True)
-    ends = np.unique(edges[count == 1])
+    ends = np.unique(boundary_edges(mesh))
     if not len(ends):
-        return np.full(len(f), np.inf)
-    v = mesh.num_vertices
-    a = sp.coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(v, v)).tocsr()
-    hops = csgraph.dijkstra(a, directed=False, unweighted=True, indices=ends, min_only=True)
-    return hops[f].min(axis=1)
+        return np.full(mesh.num_faces, np.inf)
+    hops = csgraph.dijkstra(adjacency_matrix(mesh), directed=False, unweighted=True, indices=ends, min_only=True)
+    return hops[np.asarray(mesh.faces)].min(axis=1)
 
 
 def face_angles(clean, mesh) -> np.ndarray:
