@@ -190,7 +190,7 @@ def host_solve(edges, diagonal, edge_values, b, *, backend: Literal["auto", "cho
 
     Returns:
         x, float64, the shape of ``b``."""
-    _check_backend(backend)
+    _check_backend(backend)     # here too: a bad name is a ValueError of this call, not of the annotated inner one
     return host_factor(edges, diagonal, edge_values, backend=backend, laplacian=laplacian)(b)
 
 
