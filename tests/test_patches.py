@@ -100,17 +100,20 @@ def test_ranking_on_patches_finds_the_choice_of_the_whole_mesh(ball, monkeypatch
     kw = dict(candidates=cands, paths=(), blend_draws=0, sigma=0.3 * float(mean_edge_length(ball)))
     import jaxmesh.tune.auto as auto
 
-    flags = []
+    flags, counts = [], []
 
     def spy(*args, **kwargs):
         flags.append(kwargs["antithetic"])
+        counts.append(args[6])
         return recorruptions(*args, **kwargs)
 
     monkeypatch.setattr(auto, "recorruptions", spy)
     whole = choose_denoiser(noisy, search_vertices=None, **kw)
     part = choose_denoiser(noisy, search_vertices=1600, **kw)
-    paired = choose_denoiser(noisy, search_vertices=1600, antithetic=True, **kw)
+    paired = choose_denoiser(noisy, search_vertices=1600, antithetic=True, draws=3, **kw)
     assert flags == [False, False, True]   # independent draws unless asked
+    assert counts == [2, 2, 3] == [whole.draws, part.draws, paired.draws] == [
+        whole.summary()["draws"], part.summary()["draws"], paired.summary()["draws"]]
     assert [r[1] for r in paired.table] == [r[1] for r in whole.table]
     assert whole.search_vertices == ball.num_vertices and part.search_vertices < ball.num_vertices / 2
     assert [r[1] for r in part.table] == [r[1] for r in whole.table]

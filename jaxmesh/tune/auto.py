@@ -75,13 +75,15 @@ from .race import RACE_KEEP, race, run_setting, setting_tilt
 from .recorrupt import edge_tilt, recorruptions
 
 __all__ = ["Candidate", "CANDIDATES", "IMPULSIVE_CANDIDATES", "RACE_KEEP", "SearchPath", "PATHS", "NOISE_MODELS",
-           "AutoResult", "edge_tilt", "choose_denoiser", "TAUBIN_LAMS", "TAUBIN_PASS_BANDS", "TAUBIN_MAX_ITERATIONS",
-           "taubin_mu", "BILATERAL_PATH_SIGMAS", "BILATERAL_PATH_FIXED", "BILATERAL_PATH_MAX_ITERATIONS",
-           "BILATERAL_FEATURE_SETTING", "BILATERAL_FEATURE_MAX_ITERATIONS"]
+           "AutoResult", "edge_tilt", "choose_denoiser", "TAUBIN_LAMS", "TAUBIN_PASS_BANDS",
+           "TAUBIN_MAX_ITERATIONS", "taubin_mu", "BILATERAL_PATH_SIGMAS", "BILATERAL_PATH_FIXED",
+           "BILATERAL_PATH_MAX_ITERATIONS", "BILATERAL_FEATURE_SETTING", "BILATERAL_FEATURE_MAX_ITERATIONS"]
 
 #: the noise laws of the recorruption (module docstring): impulsive detected, else Gaussian with σ_t estimated;
 #: Gaussian with σ_t = 0 or σ; impulsive forced
 NOISE_MODELS = ("auto", "normal", "isotropic", "impulsive")
+
+
 @dataclasses.dataclass(frozen=True)
 class Candidate:
     """One (method, parameters) pair that :func:`choose_denoiser` may pick."""
@@ -232,7 +234,7 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
     blind_caveats(noisy, law["sigma"], law["estimated"], risk / noisy_risk if noisy_risk > 0 else np.inf)
     return AutoResult(method, params, noisy.with_vertices(out), law["sigma"], law["estimated"], law["tangential"],
                       risk, noisy_risk, bool(risk < noisy_risk), table, components, law["law"], law["fraction"],
-                      search.mesh.num_vertices, seconds, estimator)
+                      search.mesh.num_vertices, seconds, estimator, draws)
 
 
 def _unchanged(noisy: Mesh, seconds: float) -> AutoResult:

@@ -49,7 +49,8 @@ class AutoResult:
     * ``search_vertices``: the vertices of the mesh the candidates were ranked on (the
       whole mesh's, or its patches', :mod:`jaxmesh.tune.patches`);
     * ``estimator``: ``"recorrupted"`` (:mod:`jaxmesh.tune.recorrupt`) or ``"held_out"``
-      (impulsive noise, :mod:`jaxmesh.tune.heldout`), the estimate that ranked the candidates;
+      (impulsive noise, :mod:`jaxmesh.tune.heldout`), the estimate that ranked the candidates,
+      and ``draws``: on how many of its draws (0 when nothing was ranked);
     * ``seconds``: wall seconds of each stage: ``"noise_law"`` (read on the whole mesh),
       ``"patches"`` (sampling them; 0 on the whole mesh), ``"ranking"`` (the race and the
       blend's draws) and ``"choice"`` (the choice run on the whole mesh).
@@ -71,6 +72,7 @@ class AutoResult:
     search_vertices: int = 0
     seconds: dict = dataclasses.field(default_factory=dict)
     estimator: str = "recorrupted"
+    draws: int = 0
 
     @property
     def rms_tilt_degrees(self) -> float:
@@ -85,6 +87,6 @@ class AutoResult:
                 "estimated_rms_normal_error_deg": self.rms_tilt_degrees,
                 "noisy_rms_normal_error_deg": float(np.degrees(np.sqrt(max(self.noisy_risk, 0.0)))),
                 "improved": self.improved, "search_vertices": self.search_vertices, "seconds": self.seconds,
-                "estimator": self.estimator,
+                "estimator": self.estimator, "draws": self.draws,
                 "components": [c._asdict() for c in self.components],
                 "candidates": [r._asdict() for r in self.table]}
