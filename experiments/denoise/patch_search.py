@@ -3,7 +3,7 @@ choice the whole mesh's, and what does it save?
 
     .venv/bin/python experiments/denoise/patch_search.py [--meshes bunny] [--search-vertices 2000]
         [--draws independent|pairs] [--ranking-draws 2]
-        [--keys 0 1 2] [--margin 2] [--reuse-whole]
+        [--keys 0 1 2] [--whole-keys 0 1 2] [--margin 2] [--reuse-whole]
 
 For each mesh (unit bounding-box diagonal) × σ ∈ {0.1, 0.3, 0.5}ℓ̄ × both noise
 models (isotropic; along the clean normals), seed 0: ``choose_denoiser`` ranked
@@ -18,17 +18,19 @@ their number (``choose_denoiser(draws=)``, default 2, the library's).
 (:data:`~jaxmesh.tune.patches.PATCH_MARGIN`, which ``choose_denoiser`` does not
 take: the script hands it to the chooser's ``sample_patches``).  ``--keys``: the
 chooser's keys for the patch ranking (each draws its own patches and
-recorruptions; the whole mesh is ranked with key 0): with several, each cell
-gives the mean error over the keys and the worst key's ratio, since one draw of
-the patches moves the ratio by a few percent.
-The whole-mesh results are saved to ``patch_search_whole.json``;
+recorruptions): with several, each cell gives the mean error over the keys and
+the worst key's ratio, since one draw of the patches moves the ratio by a few
+percent.  ``--whole-keys``: the keys of the whole-mesh ranking (default 0); with
+several, the whole column is the mean over them (its own draws move it too) and
+the table adds the whole keys' range.
+The whole-mesh results are saved to ``patch_search_whole.json`` (one entry per key);
 ``--reuse-whole`` reads them from there instead of recomputing them (they do
 not depend on the patch ranking's options; rerun without it after a change to
 the chooser).  Writes
-experiments/results/denoise/patch_search[_DRAWS][_dN][_mN][_svN][_keysK].md
+experiments/results/denoise/patch_search[_DRAWS][_dN][_mN][_svN][_keysK][_wholeK].md
 (``_dN`` for N ranking draws other than 2, ``_mN`` for N margin rings other
 than the library's, ``_svN`` for a ``--search-vertices`` other than the
-library's, ``_keysK`` for K keys).
+library's, ``_keysK`` for K keys, ``_wholeK`` for K whole-mesh keys).
 """
 
 from __future__ import annotations
@@ -58,6 +60,11 @@ CELLS = tuple((s, m) for s in (0.1, 0.3, 0.5) for m in ("iso", "nor"))
 DRAWS = {"independent": False, "pairs": True}
 
 
+def whole_name(cell: str, key: int) -> str:
+    """The whole-mesh result's name in the saved json (key 0's is the cell's own name)."""
+    return cell if key == 0 else f"{cell} key {key}"
+
+
 def run(noisy, clean, **kw):
     t = time.perf_counter()
     r = choose_denoiser(noisy, **kw)
@@ -72,6 +79,8 @@ def main() -> None:
     ap.add_argument("--ranking-draws", type=int, default=2, help="the patch ranking's recorruptions (default 2)")
     ap.add_argument("--margin", type=int, default=PATCH_MARGIN, help=f"rings around each core (default {PATCH_MARGIN})")
     ap.add_argument("--keys", nargs="+", type=int, default=[0], help="the patch ranking's keys (default 0)")
+    ap.add_argument("--whole-keys", nargs="+", type=int, default=[0],
+                    help="the whole-mesh ranking's keys (default 0); the whole column is their mean")
     ap.add_argument("--reuse-whole", action="store_true", help="read the whole-mesh results from the last full run")
     args = ap.parse_args()
     if args.margin != PATCH_MARGIN:      # the chooser draws its patches through this name
@@ -79,28 +88,33 @@ def main() -> None:
     saved = RESULTS / "patch_search_whole.json"
     whole = json.loads(saved.read_text()) if args.reuse_whole else {}
     keys = f"keys {', '.join(map(str, args.keys))}"
+    whole_keys = f"whole-mesh keys {', '.join(map(str, args.whole_keys))}"
     lines = [f"# Patch search (search_vertices={args.search_vertices}, margin {args.margin}, {args.ranking_draws} "
-             f"{args.draws} draws, {keys}) against the whole-mesh search", "",
-             "| mesh | σ/ℓ̄ | model | whole ° | patches ° (mean) | ratio (mean) | worst key's ratio | whole s | "
-             "patches s (mean) | searched V |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
+             f"{args.draws} draws, {keys}) against the whole-mesh search ({whole_keys})", "",
+             "| mesh | σ/ℓ̄ | model | whole ° (mean) | whole keys' range ° | patches ° (mean) | ratio (mean) | "
+             "worst key's ratio | whole s (mean) | patches s (mean) | searched V |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     ratios, worst = [], []
     for name in args.meshes:
         clean = jaxmesh.normalize(load(name))
         for sigma, model in CELLS:
             noisy = jaxmesh.add_noise(clean, sigma, 0, along_normals=model == "nor")
             cell = f"{name} {sigma} {model}"
-            if cell not in whole:
-                e_w, t_w, _ = run(noisy, clean, search_vertices=None)
-                whole[cell] = {"normal_deg": e_w, "seconds": t_w}
-            e_w, t_w = whole[cell]["normal_deg"], whole[cell]["seconds"]
+            for k in args.whole_keys:
+                if whole_name(cell, k) not in whole:
+                    e_k, t_k, _ = run(noisy, clean, search_vertices=None, key=k)
+                    whole[whole_name(cell, k)] = {"normal_deg": e_k, "seconds": t_k}
+            by_key = [whole[whole_name(cell, k)] for k in args.whole_keys]
+            e_each = [w["normal_deg"] for w in by_key]
+            e_w, t_w = np.mean(e_each), np.mean([w["seconds"] for w in by_key])
             runs = [run(noisy, clean, search_vertices=args.search_vertices, antithetic=DRAWS[args.draws], key=k,
                         draws=args.ranking_draws)
                     for k in args.keys]
             e_p, t_p = np.mean([r[0] for r in runs]), np.mean([r[1] for r in runs])
             ratios.append(e_p / e_w)
             worst.append(max(r[0] for r in runs) / e_w)
-            lines.append(f"| {name} | {sigma} | {model} | {e_w:.3f} | {e_p:.3f} | {e_p / e_w:.3f} | {worst[-1]:.3f} | "
+            lines.append(f"| {name} | {sigma} | {model} | {e_w:.3f} | {min(e_each):.3f}–{max(e_each):.3f} | "
+                         f"{e_p:.3f} | {e_p / e_w:.3f} | {worst[-1]:.3f} | "
                          f"{t_w:.1f} | {t_p:.1f} | {runs[0][2]} |")
             print(lines[-1], flush=True)
     lines += ["", f"Ratio patches / whole (mean over the keys): mean {np.mean(ratios):.3f}, worst {max(ratios):.3f}; "
@@ -112,7 +126,8 @@ def main() -> None:
               + ("" if args.ranking_draws == 2 else f"_d{args.ranking_draws}")
               + ("" if args.margin == PATCH_MARGIN else f"_m{args.margin}")
               + ("" if args.search_vertices == SEARCH_VERTICES else f"_sv{args.search_vertices}")
-              + ("" if args.keys == [0] else f"_keys{len(args.keys)}"))
+              + ("" if args.keys == [0] else f"_keys{len(args.keys)}")
+              + ("" if args.whole_keys == [0] else f"_whole{len(args.whole_keys)}"))
     (RESULTS / f"patch_search{suffix}.md").write_text("\n".join(lines) + "\n")
 
 
