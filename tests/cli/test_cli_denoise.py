@@ -244,7 +244,8 @@ def test_denoise_auto_passes_the_noise_model_on(capsys, tmp_path, small_pair, mo
             main(["denoise", noisy, str(tmp_path / "b.ply"), "--search-vertices", bad])
         assert "expected an integer >= 32 or 'all'" in capsys.readouterr().err
     assert main(["denoise", noisy, str(tmp_path / "a.ply"), "--search-vertices", "all", "--json"]) == 0
-    assert json.loads(capsys.readouterr().out)["auto"]["search_vertices"] > 0
+    ranked = json.loads(capsys.readouterr().out)["auto"]
+    assert ranked["search_vertices"] > 0 and ranked["draws"] == 2
     assert main(["denoise", noisy, str(tmp_path / "f.ply"), "--noise-model", "impulsive", "--json"]) == 0
     s = json.loads(capsys.readouterr().out)
     assert s["auto"]["noise_law"] == "impulsive" and s["auto"]["tangential_noise_sigma"] == 0.0
