@@ -468,6 +468,49 @@ def test_a_path_stops_once_its_risk_has_risen():
             assert k < path.max_iterations or rule[0] > 1.01
 
 
+def test_held_vertices_are_reset_after_every_iteration(sphere):
+    """With a pin (mask, p), a path's risks and a counted run are those of a plain loop that sets the
+    masked vertices to p after each single iteration; the pinned vertices end at p, the others move."""
+    from jaxmesh.geometry import face_normals, mean_edge_length
+    from jaxmesh.tune.paths import SearchPath, one_iteration, path_risks
+    from jaxmesh.tune.race import run_setting, setting_tilt
+
+    noisy = jaxmesh.add_noise(sphere, 0.2, 3).astype(jnp.float64)
+    ell, nu = mean_edge_length(noisy), face_normals(noisy)
+    rng = np.random.default_rng(0)
+    inputs = noisy.vertices[None] + 0.01 * rng.standard_normal((2, noisy.num_vertices, 3))
+    targets = noisy.vertices[None] + 0.01 * rng.standard_normal((2, noisy.num_vertices, 3))
+    mask = np.arange(noisy.num_vertices) % 4 == 0
+    p = np.asarray(noisy.vertices) + 0.003
+    pin = (jnp.asarray(mask), jnp.asarray(p))
+    for method, setting, fixed in (("taubin", {"lam": 0.5, "mu": -0.53}, ()),
+                                   ("bilateral_normal", {"sigma_s": 1.0, "sigma_r": 0.6},
+                                    (("normal_iterations", 1), ("vertex_iterations", 5)))):
+        aux = METHODS[method].prepare(noisy)
+        path = SearchPath(method, (setting,), fixed, 5)
+        cont, statics = METHODS[method].split(**setting, **dict(fixed))
+        statics = tuple(kv for kv in statics if kv[0] != "iterations")
+        x, want = np.asarray(inputs), []
+        for _ in range(5):
+            x = np.array(one_iteration(noisy, jnp.asarray(x), cont, aux, method, statics))
+            x[:, mask] = p[mask]
+            t = np.asarray(edge_tilt(noisy, nu, ell, jnp.asarray(x) - targets))
+            want.append(np.sum(t**2) / noisy.num_faces)
+        got = path_risks(noisy, path, setting, inputs, targets, nu, ell, aux, stop=None, pin=pin)
+        np.testing.assert_allclose(got, want, rtol=1e-10)
+        assert not np.allclose(got, path_risks(noisy, path, setting, inputs, targets, nu, ell, aux, stop=None))
+        params = {**setting, **dict(fixed), "iterations": 5}
+        run = np.asarray(run_setting(noisy, inputs[0], method, params, aux, counted=True, pin=pin))
+        np.testing.assert_allclose(run, x[0], atol=1e-12)
+        np.testing.assert_array_equal(run[mask], p[mask])
+        assert np.abs(run[~mask] - p[~mask]).max() > 1e-3
+        tilt = setting_tilt(noisy, inputs[0], targets[0], nu, ell, method, params, aux, counted=True, pin=pin)
+        np.testing.assert_allclose(tilt, edge_tilt(noisy, nu, ell, jnp.asarray(x[0]) - targets[0]), atol=1e-12)
+        free = run_setting(noisy, inputs[0], method, params, aux, pin=pin)      # a whole run holds nothing
+        np.testing.assert_allclose(free, METHODS[method](noisy.with_vertices(inputs[0]), **params).vertices,
+                                   atol=1e-12)
+
+
 def test_racing_finishes_the_best_of_each_family_on_every_draw(sphere):
     """After the first draw only the race_keep best settings of each family go on: their
     estimates are those of the unraced search, they come first in the table, and keeping

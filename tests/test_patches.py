@@ -49,6 +49,62 @@ def test_the_patches_are_hop_balls_with_their_margin(ball):
     assert not np.array_equal(np.sort(other.seeds), np.sort(p.seeds))
 
 
+def test_the_rim_is_where_the_patches_meet_the_rest(ball):
+    """The rim is the region's vertices with a whole-mesh edge leaving the region (a plain loop over the
+    edges); on a closed mesh these are exactly the search mesh's boundary-edge vertices."""
+    p = sample_patches(ball, vertices=800, count=4, margin=2)
+    region = np.zeros(ball.num_vertices, bool)
+    region[p.vertices] = True
+    want = np.zeros(ball.num_vertices, bool)
+    for a, b in np.asarray(ball.faces)[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2):
+        want[a] |= region[a] and not region[b]
+        want[b] |= region[b] and not region[a]
+    np.testing.assert_array_equal(p.rim, want[p.vertices])
+    faces = np.asarray(p.mesh.faces)
+    edges, uses = np.unique(np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1), axis=0, return_counts=True)
+    on_edge = np.zeros(p.mesh.num_vertices, bool)
+    on_edge[edges[uses == 1].ravel()] = True
+    has_face = np.bincount(faces.ravel(), minlength=p.mesh.num_vertices) > 0
+    np.testing.assert_array_equal(p.rim[has_face], on_edge[has_face])
+    assert 0 < p.rim.sum() < p.mesh.num_vertices / 4 and not (p.rim & ~has_face).any()
+
+
+def test_the_chooser_holds_the_rim_on_patches_only(ball, monkeypatch):
+    """choose_denoiser hands the race the patches' rim with the pilot's positions (guided filtering of
+    the search mesh), nothing with pin_rim=False or on the whole mesh."""
+    import jaxmesh.tune.auto as auto
+    from jaxmesh.host import HostMesh
+    from jaxmesh.tune.race import run_setting
+
+    class Stop(Exception):
+        pass
+
+    drawn, pins = [], []
+
+    def spy_patches(*args, **kwargs):
+        drawn.append(sample_patches(*args, **kwargs))
+        return drawn[-1]
+
+    def spy_race(*args):
+        pins.append(args[-1])
+        raise Stop
+
+    monkeypatch.setattr(auto, "sample_patches", spy_patches)
+    monkeypatch.setattr(auto, "race", spy_race)
+    s = trimesh.creation.icosphere(4)                       # 2562 vertices, 32 patches of 3 core vertices
+    noisy = jaxmesh.add_noise(jaxmesh.Mesh.from_arrays(s.vertices, s.faces).astype(jnp.float64), 0.3, 0)
+    for kw in ({}, {"pin_rim": False}, {"search_vertices": None}):
+        with pytest.raises(Stop):
+            choose_denoiser(noisy, **{"search_vertices": 100, "sigma": 0.001, "noise_model": "normal", **kw})
+    assert len(drawn) == 2 and pins[1:] == [None, None]
+    patches = drawn[0]
+    mask, positions = pins[0]
+    np.testing.assert_array_equal(np.asarray(mask), patches.rim)
+    pilot = run_setting(patches.mesh, patches.mesh.vertices, "guided_normal", {},
+                        HostMesh(patches.mesh).aux("guided_normal"))
+    np.testing.assert_allclose(np.asarray(positions), np.asarray(pilot), atol=1e-12)
+
+
 def test_the_centres_are_uniform_within_their_parts(ball):
     """Over many seeds each part's centre is drawn uniformly: the mean hop distance from the centres
     to their part's vertices matches the part's mean pairwise hop distance (what a uniform draw

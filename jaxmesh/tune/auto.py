@@ -36,7 +36,9 @@ choice does not beat it, ``improved`` is False and the caller must say so.
 **Large meshes.**  On a mesh of more than ``PATCH_FACTOR × search_vertices``
 vertices the candidates are ranked on patches of it, a stratified sample of the
 surface (:mod:`jaxmesh.tune.patches`), and only the choice runs on the whole
-mesh; the noise law is read on the whole mesh.
+mesh; the noise law is read on the whole mesh.  The patches' rim (the vertices
+next to the rest of the mesh) is held at the pilot's positions through the
+search paths' iterations (``pin_rim``).
 Measurements and the alternatives tried: the denoising guide.
 """
 
@@ -115,7 +117,7 @@ def _pilot_normals(pilot: Mesh):
 
 def _check(noisy: Mesh, candidates: Sequence[Candidate], paths: Sequence[SearchPath], draws, a, noise_model,
            blend_draws=0, blend_size=2, snapshots=(),
-           search_vertices=None, antithetic=False, race_keep=None) -> None:
+           search_vertices=None, antithetic=False, race_keep=None, pin_rim=True) -> None:
     from ..denoise import METHODS
 
     if not isinstance(noisy, Mesh):
@@ -152,8 +154,9 @@ def _check(noisy: Mesh, candidates: Sequence[Candidate], paths: Sequence[SearchP
     if search_vertices is not None and (isinstance(search_vertices, bool) or not isinstance(search_vertices, int)
                                         or search_vertices < PATCH_COUNT):
         raise ValueError(f"search_vertices must be None or an int >= {PATCH_COUNT}, got {search_vertices!r}")
-    if not isinstance(antithetic, bool):
-        raise ValueError(f"antithetic must be True or False, got {antithetic!r}")
+    for name, value in (("antithetic", antithetic), ("pin_rim", pin_rim)):
+        if not isinstance(value, bool):
+            raise ValueError(f"{name} must be True or False, got {value!r}")
     if race_keep is not None and (isinstance(race_keep, bool) or not isinstance(race_keep, int) or race_keep < 1):
         raise ValueError(f"race_keep must be None or an int >= 1, got {race_keep!r}")
 
@@ -164,7 +167,7 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
                     blend_draws: int = BLEND_DRAWS, blend_size: int = BLEND_SIZE,
                     snapshots: Sequence[float] = SNAPSHOT_FACTORS, a: float = 0.5, key=0,
                     search_vertices: int | None = SEARCH_VERTICES, antithetic: bool = False,
-                    race_keep: int | None = RACE_KEEP) -> AutoResult:
+                    race_keep: int | None = RACE_KEEP, pin_rim: bool = True) -> AutoResult:
     """Pick the candidate with the least recorrupted normal-error estimate
     (module docstring) and denoise ``noisy`` with it, blind.
 
@@ -196,12 +199,15 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
         race_keep: after the first draw, how many settings of each family (each method among
             the fixed candidates, each search path) go on to the other draws (module docstring,
             *Racing*); ``None``: every setting on every draw.
+        pin_rim: on patches, hold their rim (the vertices next to the rest of the mesh) at the
+            pilot's positions after every iteration of the search paths, as the denoised
+            surface around them would be; False: a free edge (measured: the denoising guide).
 
     Returns:
         An :class:`AutoResult`: the method and parameters chosen (or the blend), the
         denoised mesh, the table of estimated risks."""
     _check(noisy, list(candidates) + list(impulsive_candidates), paths, draws, a, noise_model, blend_draws,
-           blend_size, snapshots, search_vertices, antithetic, race_keep)
+           blend_size, snapshots, search_vertices, antithetic, race_keep, pin_rim)
     clock = [time.perf_counter()]
     host = HostMesh(noisy)
     law = _noise_law(host, sigma, noise_model)
@@ -210,16 +216,11 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
         return _unchanged(noisy, clock[1] - clock[0])
     if law["law"] == "impulsive":
         candidates = list(candidates) + [c for c in impulsive_candidates if c not in candidates]
-    search, s_vertex, core = host, law["vertex_sigma"], None
-    if search_vertices is not None and noisy.num_vertices > PATCH_FACTOR * search_vertices:
-        seed = int(jax.random.randint(library_key(key, PATCH_STREAM), (), 0, np.iinfo(np.int32).max))
-        patches = sample_patches(noisy, search_vertices, seed=seed)
-        search, core = HostMesh(patches.mesh), patches.core_faces
-        s_vertex = s_vertex if np.ndim(s_vertex) == 0 else np.asarray(s_vertex)[patches.vertices]
+    search, s_vertex, core, rim = _search_mesh(host, law["vertex_sigma"], search_vertices, key, pin_rim)
     clock.append(time.perf_counter())
     impulsive = (law["fraction"], law["sigma"]) if law["law"] == "impulsive" else None
     ranked = _rank(search, core, mean_edge_length(noisy), candidates, paths, s_vertex, law["tangential"], draws,
-                   blend_draws, blend_size, snapshots, a, key, antithetic, race_keep, impulsive)
+                   blend_draws, blend_size, snapshots, a, key, antithetic, race_keep, impulsive, rim)
     components, risk, noisy_risk, table, estimator = ranked
     clock.append(time.perf_counter())
     y = noisy.vertices
@@ -237,6 +238,20 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
                       search.mesh.num_vertices, seconds, estimator, draws)
 
 
+def _search_mesh(host: HostMesh, s_vertex, search_vertices: int | None, key, pin_rim: bool) -> tuple:
+    """The mesh the candidates are ranked on (module docstring, *Large meshes*): (its host mesh, the
+    noise level of each of its vertices (or one σ), the faces that count or None for all, the vertices
+    held through the search paths' iterations or None)."""
+    noisy = host.mesh
+    if search_vertices is None or noisy.num_vertices <= PATCH_FACTOR * search_vertices:
+        return host, s_vertex, None, None
+    seed = int(jax.random.randint(library_key(key, PATCH_STREAM), (), 0, np.iinfo(np.int32).max))
+    patches = sample_patches(noisy, search_vertices, seed=seed)
+    s_vertex = s_vertex if np.ndim(s_vertex) == 0 else np.asarray(s_vertex)[patches.vertices]
+    rim = patches.rim if pin_rim and patches.rim.any() else None
+    return HostMesh(patches.mesh), s_vertex, patches.core_faces, rim
+
+
 def _unchanged(noisy: Mesh, seconds: float) -> AutoResult:
     """The result for a mesh that reads as noise-free (σ̂ = 0): the input itself, with a warning."""
     warnings.warn(f"the mesh reads as noise-free (noise estimate 0 from {noisy.num_vertices} vertices: an exactly "
@@ -252,15 +267,15 @@ def _path_methods(paths: Sequence[SearchPath]) -> frozenset:
 
 
 def _tilts(noisy: Mesh, inputs, targets, candidates: Sequence[Candidate], auxes: dict, nu, ell,
-           counted=frozenset()) -> list[np.ndarray]:
+           counted=frozenset(), pin=None) -> list[np.ndarray]:
     """T = A(f(ŷ_d) − ỹ_d) of every candidate f on every draw (ŷ_d, ỹ_d), one array (D, F, 3) per
     candidate, the candidates side by side on the host's cores (:mod:`jaxmesh._threads`; the methods
-    in ``counted`` with their count traced).  One mesh per call: batching the draws or the settings
-    into one call ran slower on CPU under the ``jaxmesh`` command's XLA flags
-    (:mod:`jaxmesh.compiler`) and compiled a program per batch size."""
+    in ``counted`` with their count traced, ``pin`` held after each of their iterations).  One mesh
+    per call: batching the draws or the settings into one call ran slower on CPU under the
+    ``jaxmesh`` command's XLA flags (:mod:`jaxmesh.compiler`) and compiled a program per batch size."""
     def tilts(c: Candidate) -> np.ndarray:
         return np.stack([np.asarray(setting_tilt(noisy, x, t, nu, ell, c.method, c.params, auxes[c.method],
-                                                 c.method in counted)) for x, t in zip(inputs, targets)])
+                                                 c.method in counted, pin)) for x, t in zip(inputs, targets)])
     return concurrent_map(tilts, candidates)
 
 
@@ -290,10 +305,11 @@ def _held_out(noisy: Mesh, pilot: Mesh, nu_pilot, n, ell, core, auxes: dict, imp
 
 
 def _rank(host: HostMesh, core, ell, candidates, paths, s_vertex, s_t, draws, blend_draws, blend_size, snapshots, a,
-          key, antithetic=False, race_keep=None, impulsive=None) -> tuple:
+          key, antithetic=False, race_keep=None, impulsive=None, rim=None) -> tuple:
     """The search of :func:`choose_denoiser` on ``host``'s mesh (the whole mesh or its patches, where only
     the faces of ``core`` count): (components, risk, doing nothing's risk, table), risks per counted face.
-    ``impulsive``: (p̂, σ̂₁) to rank by the held-out estimate where it measures enough faces."""
+    ``impulsive``: (p̂, σ̂₁) to rank by the held-out estimate where it measures enough faces; ``rim``:
+    the vertices held at the pilot's positions through the search paths' iterations, or None."""
     noisy = host.mesh
     y = noisy.vertices
     methods = ({c.method for c in candidates} | {"guided_normal"} | _path_methods(paths)
@@ -301,6 +317,7 @@ def _rank(host: HostMesh, core, ell, candidates, paths, s_vertex, s_t, draws, bl
     auxes = {m: host.aux(m) for m in methods}
     pilot = noisy.with_vertices(run_setting(noisy, y, "guided_normal", {}, auxes["guided_normal"]))
     nu, n = _pilot_normals(pilot)
+    pin = None if rim is None else (jnp.asarray(rim), pilot.vertices)
     counted = np.ones(noisy.num_faces, bool) if core is None else np.asarray(core, bool)
     held = _held_out(noisy, pilot, nu, n, ell, counted, auxes, impulsive, key) if impulsive else None
     if held is not None:
@@ -319,13 +336,13 @@ def _rank(host: HostMesh, core, ell, candidates, paths, s_vertex, s_t, draws, bl
         inputs, targets, trace = draw(draws)
         constant, nothing = (1 + 1 / a**2) * trace, (1 + a**2) * trace
 
-    table, leaders = race(noisy, candidates, paths, inputs, targets, nu, ell, auxes, constant, race_keep)
+    table, leaders = race(noisy, candidates, paths, inputs, targets, nu, ell, auxes, constant, race_keep, pin)
     components, risk = (Component(table[0].method, table[0].params, 1.0),), table[0].risk
     rows = leaders + snapshot_rows(leaders[len(leaders) - len(paths):], snapshots, leaders)
     if blend_draws and blend_size > 1 and len(rows) > 1:
         fresh = draw(blend_draws, BLEND_SALT)
         blended = [Candidate(*r[:2]) for r in rows]
-        gram = tilt_gram(np.stack(_tilts(noisy, *fresh[:2], blended, auxes, nu, ell, _path_methods(paths))))
+        gram = tilt_gram(np.stack(_tilts(noisy, *fresh[:2], blended, auxes, nu, ell, _path_methods(paths), pin)))
         winner = next(i for i, r in enumerate(rows) if r is table[0])
         mix, total = best_mixture(gram, winner, blend_size)
         if len(mix) > 1 and worth_blending(gram, winner, total, constant, noisy.num_faces * blend_draws):

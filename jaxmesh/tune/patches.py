@@ -11,7 +11,12 @@ region is B_{r+m}(c), the core and ``margin`` rings m around it.  The search
 mesh is the union of the regions (the faces whose three vertices lie in it,
 :func:`jaxmesh.graph.submesh`).  Its faces with three core vertices are the
 ones the ranking counts: a patch's outer rings are an artificial boundary,
-where the filters behave as they do nowhere on the whole mesh.
+where the filters behave as they do nowhere on the whole mesh.  Its *rim*, the
+search-mesh vertices with a whole-mesh neighbour outside the regions, is what
+the chooser holds at its pilot's positions while it runs the search paths on
+the patches (:func:`~jaxmesh.tune.choose_denoiser`, ``pin_rim``): the surface
+around a patch is then a denoised one, as it is around the same part of the
+whole mesh, rather than a free edge that the filters shrink and curl.
 
 Why random centres and many small patches: the candidates' errors vary over a
 scanned surface (smooth flanks, detailed fur, creases), and so does the
@@ -58,13 +63,15 @@ class Patches:
     * ``mesh``: the union of the regions (single mesh, the input's dtype);
     * ``vertices``: each search-mesh vertex's index in the whole mesh, (V_s,);
     * ``core_faces``: which search-mesh faces the ranking counts, (F_s,) bool;
-    * ``seeds``: the patches' centres (whole-mesh indices).
+    * ``seeds``: the patches' centres (whole-mesh indices);
+    * ``rim``: which search-mesh vertices have a whole-mesh neighbour outside the regions, (V_s,) bool.
     """
 
     mesh: Mesh
     vertices: np.ndarray
     core_faces: np.ndarray
     seeds: np.ndarray
+    rim: np.ndarray
 
 
 def _hops(adjacency, source: int) -> np.ndarray:
@@ -120,4 +127,5 @@ def sample_patches(mesh: Mesh, vertices: int = SEARCH_VERTICES, count: int = PAT
         region |= d <= r + margin
     xs, fs, index = submesh(x, faces, region)
     sub = Mesh.from_arrays(xs, fs, warn=False)
-    return Patches(sub, index, core[index][fs].all(axis=1), centres)
+    outside = adjacency @ (~region).astype(np.float64) > 0     # a neighbour beyond the regions
+    return Patches(sub, index, core[index][fs].all(axis=1), centres, outside[index])

@@ -27,6 +27,11 @@ once its risk has stayed above ``PATH_STOP_FACTOR`` times its least for more
 than ``PATH_STOP_PATIENCE`` iterations; the counts not run read +inf (how often
 that moves a curve's least point: the denoising guide, *Paths stop early*).
 
+**Held vertices.**  On the patches of a large mesh (:mod:`jaxmesh.tune.patches`)
+each iteration is followed by x_i ← p_i on the patches' rim (``pin``: the rim
+and the pilot's positions p), so the filters see a denoised surface beyond
+each patch instead of a free edge.
+
 Why these grids, and what they were measured against: the denoising guide.
 """
 
@@ -46,7 +51,7 @@ from .recorrupt import edge_tilt
 __all__ = ["SearchPath", "PATHS", "TAUBIN_LAMS", "TAUBIN_PASS_BANDS", "TAUBIN_MAX_ITERATIONS", "taubin_mu",
            "BILATERAL_PATH_SIGMAS", "BILATERAL_PATH_FIXED", "BILATERAL_PATH_MAX_ITERATIONS",
            "BILATERAL_FEATURE_SETTING", "BILATERAL_FEATURE_MAX_ITERATIONS", "PATH_CAPACITY_STEP", "PATH_STOP_FACTOR",
-           "PATH_STOP_PATIENCE", "one_iteration", "path_risks"]
+           "PATH_STOP_PATIENCE", "one_iteration", "held", "path_risks"]
 
 #: the Taubin path's grid (module docstring): shrinking steps λ, pass bands k_PB, and every count up to the last
 TAUBIN_LAMS = (0.2, 0.35, 0.5, 0.7)
@@ -130,12 +135,29 @@ def one_iteration(mesh: Mesh, x, continuous: dict, aux: dict, method: str, stati
                            **aux).vertices
 
 
+def held(x, pin):
+    """x with the vertices of ``pin`` = (mask (V,) bool, positions p (V, 3)) set to p (module
+    docstring, *Held vertices*); x itself where ``pin`` is None.
+
+    Arguments:
+        x: positions, (*batch, V, 3).
+        pin: None, or (mask, p).
+
+    Returns:
+        x's shape."""
+    if pin is None:
+        return x
+    mask, p = pin
+    return jnp.where(mask[:, None], p.astype(x.dtype), x)
+
+
 @stored_jit(static_argnames=("method", "statics", "capacity"))
-def _path_risks(mesh: Mesh, inputs, targets, nu, ell, continuous: dict, aux: dict, count, factor, patience,
+def _path_risks(mesh: Mesh, inputs, targets, nu, ell, continuous: dict, aux: dict, count, factor, patience, pin,
                 method: str, statics: tuple, capacity: int):
     """Mean edge-tilt risk Σ‖A(x_t − target)‖²/F over the draws after every
     iteration t = 1..count of one setting, stopped early (module docstring, *Stopping*):
-    shape (capacity,), +inf past the last iteration run.  ``inputs``, ``targets``: (D, V, 3)."""
+    shape (capacity,), +inf past the last iteration run.  ``inputs``, ``targets``: (D, V, 3); ``pin``:
+    as for :func:`held`."""
 
     def going(state):
         t, _, risks, best_t = state
@@ -145,7 +167,7 @@ def _path_risks(mesh: Mesh, inputs, targets, nu, ell, continuous: dict, aux: dic
 
     def step(state):
         t, x, risks, best_t = state
-        x = one_iteration(mesh, x, continuous, aux, method, statics)
+        x = held(one_iteration(mesh, x, continuous, aux, method, statics), pin)
         r = edge_tilt(mesh, nu, ell, x - targets)                                    # (D, F, 3)
         risks = risks.at[t].set(jnp.mean(jnp.sum(r * r, axis=(-2, -1))) / mesh.num_faces)
         return t + 1, x, risks, jnp.where(risks[t] < risks[best_t], t, best_t)
@@ -155,7 +177,7 @@ def _path_risks(mesh: Mesh, inputs, targets, nu, ell, continuous: dict, aux: dic
 
 
 def path_risks(mesh: Mesh, path: SearchPath, setting: dict, inputs, targets, nu, ell, aux: dict,
-               stop: tuple[float, int] | None = (PATH_STOP_FACTOR, PATH_STOP_PATIENCE)) -> np.ndarray:
+               stop: tuple[float, int] | None = (PATH_STOP_FACTOR, PATH_STOP_PATIENCE), pin=None) -> np.ndarray:
     """Σ‖A(x_t − ỹ)‖²/F summed over the draws, after every iteration t = 1..``path.max_iterations``
     of one setting of ``path`` (x_0 = ŷ).
 
@@ -169,6 +191,7 @@ def path_risks(mesh: Mesh, path: SearchPath, setting: dict, inputs, targets, nu,
         ell: the mean edge length ℓ̄.
         aux: the method's prepared arrays.
         stop: (factor, patience) of the early stop (module docstring, *Stopping*); None: every count.
+        pin: None, or (mask (V,) bool, positions (V, 3)) held after every iteration (:func:`held`).
 
     Returns:
         (max_iterations,) float64, the sum over the D draws; +inf past the last count run."""
@@ -179,5 +202,5 @@ def path_risks(mesh: Mesh, path: SearchPath, setting: dict, inputs, targets, nu,
     capacity = -(-path.max_iterations // PATH_CAPACITY_STEP) * PATH_CAPACITY_STEP
     factor, patience = (np.inf, 0) if stop is None else stop
     risk = _path_risks(mesh, inputs, targets, nu, ell, cont, aux, np.int32(path.max_iterations),
-                       np.asarray(factor, inputs.dtype), np.int32(patience), path.method, statics, capacity)
+                       np.asarray(factor, inputs.dtype), np.int32(patience), pin, path.method, statics, capacity)
     return np.asarray(risk, np.float64)[:path.max_iterations] * len(inputs)

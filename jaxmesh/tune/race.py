@@ -24,7 +24,7 @@ from .._exported import stored_jit
 from .._threads import concurrent_map
 from ..mesh import Mesh
 from .auto_result import Ranked
-from .paths import SearchPath, one_iteration, path_risks
+from .paths import SearchPath, held, one_iteration, path_risks
 from .recorrupt import edge_tilt
 
 __all__ = ["RACE_KEEP", "race", "run_setting", "setting_tilt"]
@@ -33,19 +33,21 @@ __all__ = ["RACE_KEEP", "race", "run_setting", "setting_tilt"]
 RACE_KEEP = 2
 
 
-def _apply(mesh: Mesh, x, continuous: dict, aux: dict, count, method: str, statics: tuple):
+def _apply(mesh: Mesh, x, continuous: dict, aux: dict, count, pin, method: str, statics: tuple):
     """f(x), or, with a traced ``count``, ``count`` single iterations of f in a loop (one program for
-    every count: the search paths' methods, :class:`~jaxmesh.tune.SearchPath`)."""
+    every count: the search paths' methods, :class:`~jaxmesh.tune.SearchPath`), each followed by
+    :func:`~jaxmesh.tune.paths.held` with ``pin``."""
     from ..denoise import METHODS
 
     if count is None:
         return METHODS[method](mesh.with_vertices(x), throw=False, **continuous, **dict(statics), **aux).vertices
-    return jax.lax.fori_loop(0, count, lambda _, x: one_iteration(mesh, x, continuous, aux, method, statics), x)
+    return jax.lax.fori_loop(0, count, lambda _, x: held(one_iteration(mesh, x, continuous, aux, method, statics),
+                                                         pin), x)
 
 
 @stored_jit(static_argnames=("method", "statics"))
-def _run(mesh: Mesh, x, continuous: dict, aux: dict, count, method: str, statics: tuple):
-    return _apply(mesh, x, continuous, aux, count, method, statics)
+def _run(mesh: Mesh, x, continuous: dict, aux: dict, count, pin, method: str, statics: tuple):
+    return _apply(mesh, x, continuous, aux, count, pin, method, statics)
 
 
 def _split(method: str, params: dict, counted: bool) -> tuple:
@@ -60,7 +62,7 @@ def _split(method: str, params: dict, counted: bool) -> tuple:
     return cont, tuple(kv for kv in statics if kv[0] != "iterations"), np.int32(count)
 
 
-def run_setting(mesh: Mesh, x, method: str, params: dict, aux: dict, counted: bool = False):
+def run_setting(mesh: Mesh, x, method: str, params: dict, aux: dict, counted: bool = False, pin=None):
     """f(x): the registry method ``method`` with ``params`` on positions ``x`` of ``mesh``, compiled
     once per method and static parameters (the continuous ones are traced).
 
@@ -72,20 +74,23 @@ def run_setting(mesh: Mesh, x, method: str, params: dict, aux: dict, counted: bo
         aux: its prepared arrays (``METHODS[method].prepare(mesh)``).
         counted: run the ``iterations`` as a traced count of single iterations (one program for
             every count; only for methods whose iterations compose, those of the search paths).
+        pin: with ``counted``, None or (mask (V,) bool, positions (V, 3)) held after every iteration
+            (:func:`~jaxmesh.tune.paths.held`); ignored without (a fixed candidate runs as a whole).
 
     Returns:
         The denoised positions, (V, 3)."""
     cont, statics, count = _split(method, params, counted)
-    return _run(mesh, x, cont, aux, count, method, statics)
+    return _run(mesh, x, cont, aux, count, pin if counted else None, method, statics)
 
 
 @stored_jit(static_argnames=("method", "statics"))
-def _tilt(mesh: Mesh, noisy_input, target, nu, ell, continuous: dict, aux: dict, count, method: str, statics: tuple):
-    return edge_tilt(mesh, nu, ell, _apply(mesh, noisy_input, continuous, aux, count, method, statics) - target)
+def _tilt(mesh: Mesh, noisy_input, target, nu, ell, continuous: dict, aux: dict, count, pin, method: str,
+          statics: tuple):
+    return edge_tilt(mesh, nu, ell, _apply(mesh, noisy_input, continuous, aux, count, pin, method, statics) - target)
 
 
 def setting_tilt(mesh: Mesh, noisy_input, target, nu, ell, method: str, params: dict, aux: dict,
-                 counted: bool = False):
+                 counted: bool = False, pin=None):
     """T = A(f(ŷ) − ỹ) of one setting on one recorruption (ŷ, ỹ), in one compiled program.
 
     Arguments:
@@ -98,11 +103,12 @@ def setting_tilt(mesh: Mesh, noisy_input, target, nu, ell, method: str, params: 
         params: its parameters.
         aux: its prepared arrays.
         counted: as for :func:`run_setting`.
+        pin: as for :func:`run_setting`.
 
     Returns:
         (F, 3)."""
     cont, statics, count = _split(method, params, counted)
-    return _tilt(mesh, noisy_input, target, nu, ell, cont, aux, count, method, statics)
+    return _tilt(mesh, noisy_input, target, nu, ell, cont, aux, count, pin if counted else None, method, statics)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -115,19 +121,19 @@ class _Entry:
     path: SearchPath | None = None
 
 
-def _entry_sums(noisy: Mesh, entry: _Entry, inputs, targets, nu, ell, auxes: dict) -> np.ndarray:
+def _entry_sums(noisy: Mesh, entry: _Entry, inputs, targets, nu, ell, auxes: dict, pin=None) -> np.ndarray:
     """Σ_d ‖A(f(ŷ_d) − ỹ_d)‖²/F over the draws given: (1,) for a fixed candidate, one per
-    iteration count for a path setting (:func:`~jaxmesh.tune.paths.path_risks`)."""
+    iteration count for a path setting (:func:`~jaxmesh.tune.paths.path_risks`, ``pin`` held)."""
     aux = auxes[entry.method]
     if entry.path is not None:
-        return path_risks(noisy, entry.path, entry.params, inputs, targets, nu, ell, aux)
+        return path_risks(noisy, entry.path, entry.params, inputs, targets, nu, ell, aux, pin=pin)
     total = sum(float(np.sum(np.asarray(setting_tilt(noisy, x, t, nu, ell, entry.method, entry.params, aux)) ** 2))
                 for x, t in zip(inputs, targets))
     return np.array([total / noisy.num_faces])
 
 
 def race(noisy: Mesh, candidates, paths, inputs, targets, nu, ell, auxes: dict, constant: float,
-         race_keep: int | None) -> tuple[list, list]:
+         race_keep: int | None, pin=None) -> tuple[list, list]:
     """The ranking of :func:`~jaxmesh.tune.choose_denoiser` (module docstring).
 
     Arguments:
@@ -141,6 +147,8 @@ def race(noisy: Mesh, candidates, paths, inputs, targets, nu, ell, auxes: dict, 
         auxes: each method's prepared arrays.
         constant: the noise constant subtracted from every estimate.
         race_keep: the settings of each family run on the draws after the first (None: all).
+        pin: None, or (mask, positions) held after every iteration of the search paths
+            (:func:`~jaxmesh.tune.paths.held`).
 
     Returns:
         (table, leaders): :class:`~jaxmesh.tune.auto_result.Ranked` rows, those raced to the end first, best
@@ -154,7 +162,7 @@ def race(noisy: Mesh, candidates, paths, inputs, targets, nu, ell, auxes: dict, 
 
     def sums_on(indices, draws_of: slice) -> list:
         return concurrent_map(lambda i: _entry_sums(noisy, entries[i], inputs[draws_of], targets[draws_of], nu, ell,
-                                                    auxes), indices)
+                                                    auxes, pin), indices)
     sums = sums_on(range(len(entries)), slice(None, first))
     families = list(dict.fromkeys(e.family for e in entries))
     finished = set(range(len(entries)))
