@@ -3,7 +3,7 @@ choice the whole mesh's, and what does it save?
 
     .venv/bin/python experiments/denoise/patch_search.py [--meshes bunny] [--search-vertices 2000]
         [--draws independent|pairs] [--ranking-draws 2]
-        [--keys 0 1 2] [--whole-keys 0 1 2] [--margin 2] [--reuse-whole]
+        [--keys 0 1 2] [--whole-keys 0 1 2] [--margin 2] [--free-rim] [--reuse-whole]
 
 For each mesh (unit bounding-box diagonal) × σ ∈ {0.1, 0.3, 0.5}ℓ̄ × both noise
 models (isotropic; along the clean normals), seed 0: ``choose_denoiser`` ranked
@@ -16,7 +16,10 @@ independent (the library's default) or antithetic pairs; ``--ranking-draws``
 their number (``choose_denoiser(draws=)``, default 2, the library's).
 ``--margin``: the rings around each core
 (:data:`~jaxmesh.tune.patches.PATCH_MARGIN`, which ``choose_denoiser`` does not
-take: the script hands it to the chooser's ``sample_patches``).  ``--keys``: the
+take: the script hands it to the chooser's ``sample_patches``).  ``--free-rim``:
+the patches' rim is left free through the search paths' iterations
+(``choose_denoiser(pin_rim=False)``) instead of held at the pilot's positions.
+``--keys``: the
 chooser's keys for the patch ranking (each draws its own patches and
 recorruptions): with several, each cell gives the mean error over the keys and
 the worst key's ratio, since one draw of the patches moves the ratio by a few
@@ -27,7 +30,7 @@ The whole-mesh results are saved to ``patch_search_whole.json`` (one entry per k
 ``--reuse-whole`` reads them from there instead of recomputing them (they do
 not depend on the patch ranking's options; rerun without it after a change to
 the chooser).  Writes
-experiments/results/denoise/patch_search[_DRAWS][_dN][_mN][_svN][_keysK][_wholeK].md
+experiments/results/denoise/patch_search[_DRAWS][_dN][_mN][_freerim][_svN][_keysK][_wholeK].md
 (``_dN`` for N ranking draws other than 2, ``_mN`` for N margin rings other
 than the library's, ``_svN`` for a ``--search-vertices`` other than the
 library's, ``_keysK`` for K keys, ``_wholeK`` for K whole-mesh keys).
@@ -78,6 +81,7 @@ def main() -> None:
     ap.add_argument("--draws", choices=sorted(DRAWS), default="independent")
     ap.add_argument("--ranking-draws", type=int, default=2, help="the patch ranking's recorruptions (default 2)")
     ap.add_argument("--margin", type=int, default=PATCH_MARGIN, help=f"rings around each core (default {PATCH_MARGIN})")
+    ap.add_argument("--free-rim", action="store_true", help="leave the patches' rim free (pin_rim=False)")
     ap.add_argument("--keys", nargs="+", type=int, default=[0], help="the patch ranking's keys (default 0)")
     ap.add_argument("--whole-keys", nargs="+", type=int, default=[0],
                     help="the whole-mesh ranking's keys (default 0); the whole column is their mean")
@@ -89,7 +93,8 @@ def main() -> None:
     whole = json.loads(saved.read_text()) if args.reuse_whole else {}
     keys = f"keys {', '.join(map(str, args.keys))}"
     whole_keys = f"whole-mesh keys {', '.join(map(str, args.whole_keys))}"
-    lines = [f"# Patch search (search_vertices={args.search_vertices}, margin {args.margin}, {args.ranking_draws} "
+    rim = "free rim" if args.free_rim else "rim held"
+    lines = [f"# Patch search (search_vertices={args.search_vertices}, margin {args.margin}, {rim}, {args.ranking_draws} "
              f"{args.draws} draws, {keys}) against the whole-mesh search ({whole_keys})", "",
              "| mesh | σ/ℓ̄ | model | whole ° (mean) | whole keys' range ° | patches ° (mean) | ratio (mean) | "
              "worst key's ratio | whole s (mean) | patches s (mean) | searched V |",
@@ -108,7 +113,7 @@ def main() -> None:
             e_each = [w["normal_deg"] for w in by_key]
             e_w, t_w = np.mean(e_each), np.mean([w["seconds"] for w in by_key])
             runs = [run(noisy, clean, search_vertices=args.search_vertices, antithetic=DRAWS[args.draws], key=k,
-                        draws=args.ranking_draws)
+                        draws=args.ranking_draws, pin_rim=not args.free_rim)
                     for k in args.keys]
             e_p, t_p = np.mean([r[0] for r in runs]), np.mean([r[1] for r in runs])
             ratios.append(e_p / e_w)
@@ -125,6 +130,7 @@ def main() -> None:
     suffix = (("" if args.draws == "independent" else f"_{args.draws}")
               + ("" if args.ranking_draws == 2 else f"_d{args.ranking_draws}")
               + ("" if args.margin == PATCH_MARGIN else f"_m{args.margin}")
+              + ("_freerim" if args.free_rim else "")
               + ("" if args.search_vertices == SEARCH_VERTICES else f"_sv{args.search_vertices}")
               + ("" if args.keys == [0] else f"_keys{len(args.keys)}")
               + ("" if args.whole_keys == [0] else f"_whole{len(args.whole_keys)}"))
