@@ -25,14 +25,15 @@ at its defaults; its face and vertex normals are held fixed.  Every candidate
 sees the same draws (common random numbers).
 
 **Racing.**  The settings are raced over the draws (:mod:`jaxmesh.tune.race`): all on the
-first, the best ``RACE_KEEP`` of each family on the others.
+first, the best ``RACE_KEEP`` of each family on the others.  With ``second_pilot``, the race
+winner's output is then a second pilot, under which the search paths' leaders have their counts
+picked again (:mod:`jaxmesh.tune.second_pilot`): a leader at a new count joins them.
 
-**The decision.**  The candidate with the least estimate wins, unless a convex
-blend of leaders (the best of each path and of each fixed method) is estimated
-better on fresh draws (:mod:`jaxmesh.tune.blend`).  It is compared with doing
-nothing, whose error at the same noise level is (1 + a²) tr(AᵀAΣ) (held out: the
-tilt of the draws' inputs themselves): if the
-choice does not beat it, ``improved`` is False and the caller must say so.
+**The decision.**  The race's winner wins (with ``second_pilot``: the leader least on the
+blend's fresh draws), unless a convex blend of leaders (the best of each path and of each
+fixed method) is estimated better on those draws (:mod:`jaxmesh.tune.blend`).  It is compared
+with doing nothing, whose error at the same noise level is (1 + a²) tr(AᵀAΣ) (held out: the
+tilt of the draws' inputs themselves): if the choice does not beat it, ``improved`` is False.
 **Large meshes.**  On a mesh of more than ``PATCH_FACTOR × search_vertices``
 vertices the candidates are ranked on patches of it, a stratified sample of the
 surface (:mod:`jaxmesh.tune.patches`), and only the choice runs on the whole
@@ -75,6 +76,7 @@ from .paths import (BILATERAL_FEATURE_MAX_ITERATIONS, BILATERAL_FEATURE_SETTING,
 from .patches import PATCH_COUNT, PATCH_FACTOR, SEARCH_VERTICES, sample_patches
 from .race import RACE_KEEP, race, run_setting, setting_tilt
 from .recorrupt import edge_tilt, recorruptions
+from .second_pilot import SECOND_PILOT_SALT, repick_counts
 
 __all__ = ["Candidate", "CANDIDATES", "IMPULSIVE_CANDIDATES", "RACE_KEEP", "SearchPath", "PATHS", "NOISE_MODELS",
            "AutoResult", "edge_tilt", "choose_denoiser", "TAUBIN_LAMS", "TAUBIN_PASS_BANDS",
@@ -115,9 +117,14 @@ def _pilot_normals(pilot: Mesh):
     return face_normals(pilot), vertex_normals(pilot, "area")
 
 
+def _counted(nu, core):
+    """ν with ν_f = 0 on the faces outside ``core`` (None: every face counts), which then tilt by nothing."""
+    return nu if core is None else nu * jnp.asarray(core, nu.dtype)[:, None]
+
+
 def _check(noisy: Mesh, candidates: Sequence[Candidate], paths: Sequence[SearchPath], draws, a, noise_model,
            blend_draws=0, blend_size=2, snapshots=(),
-           search_vertices=None, antithetic=False, race_keep=None, pin_rim=True) -> None:
+           search_vertices=None, antithetic=False, race_keep=None, pin_rim=True, second_pilot=False) -> None:
     from ..denoise import METHODS
 
     if not isinstance(noisy, Mesh):
@@ -154,7 +161,7 @@ def _check(noisy: Mesh, candidates: Sequence[Candidate], paths: Sequence[SearchP
     if search_vertices is not None and (isinstance(search_vertices, bool) or not isinstance(search_vertices, int)
                                         or search_vertices < PATCH_COUNT):
         raise ValueError(f"search_vertices must be None or an int >= {PATCH_COUNT}, got {search_vertices!r}")
-    for name, value in (("antithetic", antithetic), ("pin_rim", pin_rim)):
+    for name, value in (("antithetic", antithetic), ("pin_rim", pin_rim), ("second_pilot", second_pilot)):
         if not isinstance(value, bool):
             raise ValueError(f"{name} must be True or False, got {value!r}")
     if race_keep is not None and (isinstance(race_keep, bool) or not isinstance(race_keep, int) or race_keep < 1):
@@ -167,7 +174,7 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
                     blend_draws: int = BLEND_DRAWS, blend_size: int = BLEND_SIZE,
                     snapshots: Sequence[float] = SNAPSHOT_FACTORS, a: float = 0.5, key=0,
                     search_vertices: int | None = SEARCH_VERTICES, antithetic: bool = False,
-                    race_keep: int | None = RACE_KEEP, pin_rim: bool = True) -> AutoResult:
+                    race_keep: int | None = RACE_KEEP, pin_rim: bool = True, second_pilot: bool = False) -> AutoResult:
     """Pick the candidate with the least recorrupted normal-error estimate
     (module docstring) and denoise ``noisy`` with it, blind.
 
@@ -202,12 +209,15 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
         pin_rim: on patches, hold their rim (the vertices next to the rest of the mesh) at the
             pilot's positions after every iteration of the search paths, as the denoised
             surface around them would be; False: a free edge (measured: the denoising guide).
+        second_pilot: after the race, pick the search paths' counts again under the race winner's
+            output as the pilot, leaders at new counts joining the others on the blend's draws
+            (module docstring, *Racing*; with ``blend_draws`` > 0; measured: the denoising guide).
 
     Returns:
         An :class:`AutoResult`: the method and parameters chosen (or the blend), the
         denoised mesh, the table of estimated risks."""
     _check(noisy, list(candidates) + list(impulsive_candidates), paths, draws, a, noise_model, blend_draws,
-           blend_size, snapshots, search_vertices, antithetic, race_keep, pin_rim)
+           blend_size, snapshots, search_vertices, antithetic, race_keep, pin_rim, second_pilot)
     clock = [time.perf_counter()]
     host = HostMesh(noisy)
     law = _noise_law(host, sigma, noise_model)
@@ -220,7 +230,7 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
     clock.append(time.perf_counter())
     impulsive = (law["fraction"], law["sigma"]) if law["law"] == "impulsive" else None
     ranked = _rank(search, core, mean_edge_length(noisy), candidates, paths, s_vertex, law["tangential"], draws,
-                   blend_draws, blend_size, snapshots, a, key, antithetic, race_keep, impulsive, rim)
+                   blend_draws, blend_size, snapshots, a, key, antithetic, race_keep, impulsive, rim, second_pilot)
     components, risk, noisy_risk, table, estimator = ranked
     clock.append(time.perf_counter())
     y = noisy.vertices
@@ -305,11 +315,12 @@ def _held_out(noisy: Mesh, pilot: Mesh, nu_pilot, n, ell, core, auxes: dict, imp
 
 
 def _rank(host: HostMesh, core, ell, candidates, paths, s_vertex, s_t, draws, blend_draws, blend_size, snapshots, a,
-          key, antithetic=False, race_keep=None, impulsive=None, rim=None) -> tuple:
+          key, antithetic=False, race_keep=None, impulsive=None, rim=None, second_pilot=False) -> tuple:
     """The search of :func:`choose_denoiser` on ``host``'s mesh (the whole mesh or its patches, where only
     the faces of ``core`` count): (components, risk, doing nothing's risk, table), risks per counted face.
     ``impulsive``: (p̂, σ̂₁) to rank by the held-out estimate where it measures enough faces; ``rim``:
-    the vertices held at the pilot's positions through the search paths' iterations, or None."""
+    the vertices held at the pilot's positions through the search paths' iterations, or None;
+    ``second_pilot``: the paths' counts picked again under the race winner's output."""
     noisy = host.mesh
     y = noisy.vertices
     methods = ({c.method for c in candidates} | {"guided_normal"} | _path_methods(paths)
@@ -326,24 +337,35 @@ def _rank(host: HostMesh, core, ell, candidates, paths, s_vertex, s_t, draws, bl
         constant, per_face = 0.0, noisy.num_faces / count
         nothing = float(jnp.sum(edge_tilt(noisy, nu, ell, inputs - targets) ** 2)) / draws / noisy.num_faces
     else:
-        if core is not None:    # faces outside the cores tilt by nothing: ν_f = 0
-            nu = nu * jnp.asarray(counted, nu.dtype)[:, None]
-        per_face = noisy.num_faces / max(int(counted.sum()), 1)
+        nu, per_face = _counted(nu, core), noisy.num_faces / max(int(counted.sum()), 1)
 
-        def draw(count: int, salt: int = 0):
-            zs = recorruptions(noisy, nu, n, ell, s_vertex, s_t, count, key, salt=salt, antithetic=antithetic)
+        def draw(count: int, salt: int = 0, normals=None):      # normals: (ν, n) of another pilot
+            nu_, n_ = (nu, n) if normals is None else normals
+            zs = recorruptions(noisy, nu_, n_, ell, s_vertex, s_t, count, key, salt=salt, antithetic=antithetic)
             return (*_recorrupted_pair(y, zs[0], a), zs[1])
         inputs, targets, trace = draw(draws)
         constant, nothing = (1 + 1 / a**2) * trace, (1 + a**2) * trace
 
     table, leaders = race(noisy, candidates, paths, inputs, targets, nu, ell, auxes, constant, race_keep, pin)
     components, risk = (Component(table[0].method, table[0].params, 1.0),), table[0].risk
+    second = second_pilot and held is None and bool(blend_draws)
+    if second:
+        won = table[0]
+        x = run_setting(noisy, y, won.method, won.params, auxes[won.method], won.method in _path_methods(paths), pin)
+        nu2, n2 = _pilot_normals(noisy.with_vertices(x))
+        nu2 = _counted(nu2, core)
+        inputs, targets, trace = draw(draws, SECOND_PILOT_SALT, (nu2, n2))
+        again = repick_counts(noisy, leaders, paths, inputs, targets, nu2, ell, auxes, (1 + 1 / a**2) * trace, pin)
     rows = leaders + snapshot_rows(leaders[len(leaders) - len(paths):], snapshots, leaders)
-    if blend_draws and blend_size > 1 and len(rows) > 1:
+    rows += [r for r, was in zip(again, leaders) if r.params != was.params] if second else []
+    if second or (blend_draws and blend_size > 1 and len(rows) > 1):
         fresh = draw(blend_draws, BLEND_SALT)
         blended = [Candidate(*r[:2]) for r in rows]
         gram = tilt_gram(np.stack(_tilts(noisy, *fresh[:2], blended, auxes, nu, ell, _path_methods(paths), pin)))
-        winner = next(i for i, r in enumerate(rows) if r is table[0])
+        winner = int(np.argmin(np.diag(gram))) if second else next(i for i, r in enumerate(rows) if r is table[0])
+        if second:
+            components = (Component(rows[winner].method, rows[winner].params, 1.0),)
+            risk = float(gram[winner, winner]) / noisy.num_faces / blend_draws - constant
         mix, total = best_mixture(gram, winner, blend_size)
         if len(mix) > 1 and worth_blending(gram, winner, total, constant, noisy.num_faces * blend_draws):
             components = tuple(Component(rows[i].method, rows[i].params, w) for i, w in mix)
