@@ -19,7 +19,9 @@ at 0.3ℓ̄ on seeds 0, 1, 2 (the issue's headline case), where the oracle guide
 filter also chooses its normal iteration count (20, 40) and tangential
 relaxation (0, 0.05, 0.1) with the clean mesh (σ_s, σ_r tuned for each).
 
-Writes experiments/results/denoise/feature_table.{md,json}.
+Writes experiments/results/denoise/feature_table.{md,json}; ``--second-pilot`` reruns the
+blind column of the saved cells with the race winner as a second pilot
+(``choose_denoiser(second_pilot=True)``) into feature_table_pilot2.{md,json}.
 """
 
 from __future__ import annotations
@@ -107,10 +109,10 @@ def local_oracle(clean, noisy) -> dict:
 
 
 def blind(clean, noisy, draws: int = 2, blend_draws: int = BLEND_DRAWS, blend_size: int = BLEND_SIZE,
-          snapshots=SNAPSHOT_FACTORS, antithetic: bool = False) -> dict:
+          snapshots=SNAPSHOT_FACTORS, antithetic: bool = False, second_pilot: bool = False) -> dict:
     start = time.perf_counter()
     c = choose_denoiser(noisy, draws=draws, blend_draws=blend_draws, blend_size=blend_size, snapshots=snapshots,
-                        antithetic=antithetic)
+                        antithetic=antithetic, second_pilot=second_pilot)
     return {"method": c.method, "params": c.params, "components": [list(x) for x in c.components],
             "improved": c.improved, "sigma_hat": c.sigma,
             "tangential_sigma": c.tangential_sigma,
@@ -208,17 +210,20 @@ def main() -> None:
     ap.add_argument("--pairs", action="store_true",
                     help="antithetic recorruption pairs (choose_denoiser(antithetic=True)); works as --draws, "
                          "writing ..._pairs")
+    ap.add_argument("--second-pilot", action="store_true",
+                    help="the race winner as a second pilot (choose_denoiser(second_pilot=True)); works as --draws, "
+                         "writing ..._pilot2")
     args = ap.parse_args()
     snaps = tuple(args.snapshots)
     RESULTS.mkdir(parents=True, exist_ok=True)
     other = (args.draws != 2 or args.blend_draws != BLEND_DRAWS or args.blend_size != BLEND_SIZE
-             or snaps != SNAPSHOT_FACTORS or args.pairs)
+             or snaps != SNAPSHOT_FACTORS or args.pairs or args.second_pilot)
     snap_name = "-".join(f"{f:g}" for f in snaps) or "0"
     stem = ("feature_table" + (f"_draws{args.draws}" if args.draws != 2 else "")
             + (f"_blend{args.blend_draws}" if args.blend_draws != BLEND_DRAWS else "")
             + (f"_size{args.blend_size}" if args.blend_size != BLEND_SIZE else "")
             + (f"_snap{snap_name}" if snaps != SNAPSHOT_FACTORS else "")
-            + ("_pairs" if args.pairs else ""))
+            + ("_pairs" if args.pairs else "") + ("_pilot2" if args.second_pilot else ""))
     path = RESULTS / f"{stem}.json"
     if other and not (args.report_only and path.exists()):     # the saved cells, with another blind column
         done = json.loads((RESULTS / "feature_table.json").read_text())
@@ -235,7 +240,8 @@ def main() -> None:
             clean = jaxmesh.normalize(load_shared(r["mesh"]))
             noisy = jaxmesh.add_noise(clean, r["sigma"], jax.random.PRNGKey(r["seed"]),
                                       along_normals=r["model"] == "normal")
-            r["blind"] = blind(clean, noisy, args.draws, args.blend_draws, args.blend_size, snaps, args.pairs)
+            r["blind"] = blind(clean, noisy, args.draws, args.blend_draws, args.blend_size, snaps, args.pairs,
+                               args.second_pilot)
             print(f"{r['mesh']} {r['sigma']} {r['model']} seed {r['seed']}: auto {r['blind']['method']} "
                   f"{r['blind']['normal_deg']:.2f}", flush=True)
             path.write_text(json.dumps(done, indent=1))
@@ -274,7 +280,8 @@ def main() -> None:
     flags = ("" if not other else " --blind-only" + (f" --draws {args.draws}" if args.draws != 2 else "")
              + (f" --blend-draws {args.blend_draws}" if args.blend_draws != BLEND_DRAWS else "")
              + (f" --blend-size {args.blend_size}" if args.blend_size != BLEND_SIZE else "")
-             + (" --snapshots" + "".join(f" {f:g}" for f in snaps) if snaps != SNAPSHOT_FACTORS else ""))
+             + (" --snapshots" + "".join(f" {f:g}" for f in snaps) if snaps != SNAPSHOT_FACTORS else "")
+             + (" --pairs" if args.pairs else "") + (" --second-pilot" if args.second_pilot else ""))
     text = table(done["cells"], flags)
     text += ("\n## The headline case: fandisk, noise along the normals, σ = 0.3ℓ̄\n\n"
              "Oracle guided_normal: σ_s, σ_r tuned for each normal iteration count (20, 40) and tangential "
