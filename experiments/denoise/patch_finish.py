@@ -57,6 +57,8 @@ from jaxmesh.tune.recorrupt import edge_tilt, recorruptions  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from shared_meshes import load  # noqa: E402
 
+#: the chooser as these figures were measured: the patches' rim free (``pin_rim`` came later)
+MEASURED = {"pin_rim": False}
 RESULTS = Path(__file__).resolve().parents[2] / "experiments" / "results" / "denoise"
 CELLS = tuple((s, m) for s in (0.1, 0.3, 0.5) for m in ("iso", "nor"))
 #: the recorruption strength of the chooser's default
@@ -176,7 +178,7 @@ def main() -> None:
         e_whole = np.mean([v["normal_deg"] for k, v in whole_runs.items() if k == cell or k.startswith(cell + " key")])
         errs, secs = {name: [] for name in summary}, {"count": [], "leaders": []}
         for key in args.keys:
-            r = choose_denoiser(noisy, key=key, draws=args.ranking_draws)
+            r = choose_denoiser(noisy, key=key, draws=args.ranking_draws, **MEASURED)
             errs["patches"].append(float(mean_normal_angle_error(clean, r.mesh)))
             start = time.perf_counter()
             whole = Whole(noisy, key, args.draws)
