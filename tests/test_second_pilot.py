@@ -48,6 +48,7 @@ def test_repick_counts_takes_each_paths_least_count_over_the_draws(noisy):
         assert 1 <= t + 1 <= path.max_iterations
 
 
+@pytest.mark.slow   # four searches of an opt-in path (~4 s); the default path is the default suite's
 def test_the_chooser_repicks_under_the_race_winners_output(noisy, monkeypatch):
     """With the second pilot the chooser hands repick_counts the face normals of the race winner run on the
     noisy mesh (an independent run of the registry method); by default, with second_pilot=False or with
