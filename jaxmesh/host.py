@@ -93,7 +93,8 @@ class HostMesh:
 
     def aux(self, method: str) -> dict[str, Any]:
         """The registry method's auxiliary inputs for this mesh
-        (:meth:`jaxmesh.denoise.Method.prepare`), each builder run once for all methods.
+        (:meth:`jaxmesh.denoise.Method.prepare`) and the inputs it would build itself
+        (``host_inputs``), each builder run once for all methods.
 
         Arguments:
             method: a registry name.
@@ -103,7 +104,7 @@ class HostMesh:
         from .denoise import as_method
 
         m = as_method(method)
-        builders = {k: m.params[k].build for k in m.aux}
+        builders = {**{k: m.params[k].build for k in m.aux}, **m.host_inputs}
         return {k: self.memo(f"aux:{b.__module__}.{b.__qualname__}", functools.partial(b, self.mesh))
                 for k, b in builders.items()}
 

@@ -466,6 +466,10 @@ def test_a_path_stops_once_its_risk_has_risen():
             np.testing.assert_allclose(stopped[:k], full[:k], rtol=1e-12)
             assert np.all(np.isinf(stopped[k:])) and np.argmin(stopped) == np.argmin(full)
             assert k < path.max_iterations or rule[0] > 1.01
+        # one draw runs without its draw axis (a faster program): the two draws' curve is the sum of theirs
+        single = sum(path_risks(noisy, path, setting, inputs[d:d + 1], targets[d:d + 1], nu, ell, aux, stop=None)
+                     for d in range(2))
+        np.testing.assert_allclose(single, full, rtol=1e-12)
 
 
 def test_held_vertices_are_reset_after_every_iteration(sphere):

@@ -58,7 +58,8 @@ def test_each_value_is_built_once_and_the_face_graph_is_shared(tetra):
     assert host.memo("x", lambda: calls.append(1) or 5) == 5 and host.memo("x", lambda: calls.append(1) or 6) == 5
     assert calls == [1]
     guided, bilateral = host.aux("guided_normal"), host.aux("bilateral_normal")
-    assert guided["graph"] is bilateral["graph"] and host.aux("taubin") == {}
+    assert guided["graph"] is bilateral["graph"] and host.aux("taubin")["rings"] is host.aux("hc")["rings"]
+    assert host.aux("geometric") == {}
     np.testing.assert_array_equal(guided["graph"].ring, jaxmesh.denoise.face_graph(tetra).ring)
 
 

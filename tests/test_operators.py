@@ -181,3 +181,45 @@ def test_sparse_export_refuses_batches(tetra):
     with pytest.raises(ValueError, match="single mesh"):
         S.edge_length_matrix(tetra.with_vertices(jnp.stack([tetra.vertices] * 2)))
     np.testing.assert_allclose(S.edge_length_matrix(tetra)[1, 2], np.sqrt(2))
+
+
+def _fan_with_an_isolated_vertex() -> jaxmesh.Mesh:
+    """A 12-triangle fan (its hub of degree 12), a 40 x 40 grid (degree at most 6: the hub gets
+    a tier of its own) and an isolated vertex."""
+    k = 12
+    ring = np.stack([np.cos(2 * np.pi * np.arange(k) / k), np.sin(2 * np.pi * np.arange(k) / k),
+                     0.1 * np.arange(k) % 0.3], axis=1)
+    gv, gf = grid_arrays(40, 40, jitter=0.1, seed=2)
+    v = np.concatenate([[[0.0, 0, 0.2]], ring, gv + [50.0, 0, 0], [[9, 9, 9]]])
+    f = np.concatenate([[[0, 1 + i, 1 + (i + 1) % k] for i in range(k)], gf + k + 1])
+    with pytest.warns(jaxmesh.MeshWarning, match="isolated"):
+        return jaxmesh.Mesh.from_arrays(v, f)
+
+
+@pytest.mark.parametrize("name", ["bumpy_grid", "fan"])
+def test_ring_umbrella_is_the_umbrella_bit_for_bit(request, name):
+    from jaxmesh.denoise import ring_umbrella, vertex_rings
+
+    mesh = _fan_with_an_isolated_vertex() if name == "fan" else request.getfixturevalue(name)
+    rings = vertex_rings(mesh)
+    x = jax.random.normal(jax.random.PRNGKey(3), (2, mesh.num_vertices, 3), mesh.dtype)
+    # the neighbours summed in the edge list's order: the same bits as the segment sums
+    np.testing.assert_array_equal(ring_umbrella(rings, x[0]), O.umbrella(mesh, x[0]))
+    np.testing.assert_array_equal(jax.jit(ring_umbrella)(rings, x), O.umbrella(mesh, x))
+    if name == "fan":
+        assert len(rings.tiers) > 1 and np.all(np.asarray(ring_umbrella(rings, x[0]))[-1] == 0)
+
+
+@pytest.mark.parametrize("method", ["taubin", "umbrella_flow", "hc"])
+def test_smoothing_filters_on_the_rings_equal_the_segment_sums(bumpy_grid, method):
+    from jaxmesh.denoise import METHODS
+
+    m = METHODS[method]
+    eager = m(bumpy_grid, iterations=7).vertices                     # the rings built on the host and passed
+    assert "rings" in m.host_inputs
+    traced = jax.jit(lambda mesh: m.function(mesh, iterations=7).vertices)(bumpy_grid)   # traced: segment sums
+    np.testing.assert_allclose(eager, traced, rtol=0, atol=1e-12)
+    curve = m(bumpy_grid, iterations=7, boundary="curve").vertices   # the boundary-curve form ignores the rings
+    np.testing.assert_allclose(curve, jax.jit(lambda mesh: m.function(mesh, iterations=7, boundary="curve").vertices)(
+        bumpy_grid), rtol=0, atol=1e-12)
+    assert np.abs(np.asarray(curve) - np.asarray(eager)).max() > 1e-3

@@ -25,7 +25,7 @@ from .kernel_flow import (
     kernel_weights,
     neighborhood_covariances,
 )
-from .vertex_rings import VertexRings, VertexTier, vertex_rings
+from .vertex_rings import VertexRings, VertexTier, ring_umbrella, vertex_rings
 from .kde import kernel_density
 from .laplacian import hc_smoothing, taubin_smoothing, umbrella_flow
 from .normal_filtering import FaceRings, face_rings, filter_normals, normal_filtering, ring_sum
@@ -38,7 +38,7 @@ __all__ = [
     "METHODS", "Method", "Param", "as_method", "denoise", "diverged", "progress", "denoise_in_unit_frame",
     "denoise_packed", "packed_run", "run_packed",
     "VARIANTS", "kernel_diffusion", "kernel_step", "kernel_weights", "neighborhood_covariances",
-    "VertexRings", "VertexTier", "vertex_rings",
+    "VertexRings", "VertexTier", "vertex_rings", "ring_umbrella",
     "hold", "region_weights", "pin_weights", "selection_mask",
     "kernel_density",
     "anisotropic_diffusion", "umbrella_flow", "taubin_smoothing", "hc_smoothing", "cotangent_flow",

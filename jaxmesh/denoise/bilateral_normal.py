@@ -23,6 +23,11 @@ One outer round, from the current positions:
 
 Differentiable in the positions and in ``sigma_s``, ``sigma_r`` and
 ``tangential`` (every step is smooth away from zero-area faces).
+
+**Layout.**  The sums over N(f) run one ring slot k at a time: a gather of the
+(F, 3) rows ``ring[:, k]`` added into an (F, 3) total, K of them written out.
+XLA's CPU backend runs that 2–9× faster than gathering the whole (F, K, 3)
+neighbourhood and reducing over K (``benchmarks/bench_ring_sums.py``).
 """
 
 from __future__ import annotations
@@ -32,7 +37,7 @@ from collections.abc import Callable
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from .._private import Scalar, lift, safe_normalize
+from .._private import Scalar, dot, lift, safe_normalize
 from ..geometry import face_areas, face_normals
 from ..mesh import Mesh
 from ._loop import check_iterations, iterate
@@ -58,11 +63,13 @@ def spatial_weights(
         (*batch, F, K) weights, 0 on padding slots."""
     geo = mesh.with_vertices(x)
     c = face_centroids(geo)
-    s = jnp.asarray(sigma_s, x.dtype) * centroid_spacing(graph, c)
-    d = c[..., :, None, :] - c[..., graph.ring, :]                      # (*b, F, K, 3)
-    d2 = jnp.sum(d * d, axis=-1)
-    w = jnp.exp(-0.5 * d2 / (s[..., None, None] ** 2)) * face_areas(geo)[..., graph.ring]
-    return jnp.where(graph.ring_mask, w, 0)
+    s2 = lift((jnp.asarray(sigma_s, x.dtype) * centroid_spacing(graph, c))[..., None] ** 2, c.ndim - 1)
+    areas = face_areas(geo)
+
+    def slot(k: int):                                                    # column k: (*b, F)
+        d = c - c[..., graph.ring[:, k], :]
+        return jnp.where(graph.ring_mask[:, k], jnp.exp(-0.5 * dot(d, d) / s2) * areas[..., graph.ring[:, k]], 0)
+    return jnp.stack([slot(k) for k in range(graph.ring.shape[1])], axis=-1)
 
 
 def joint_bilateral_normals(
@@ -82,12 +89,15 @@ def joint_bilateral_normals(
 
     Returns:
         The filtered unit normals, (*batch, F, 3)."""
-    diff = guidance[..., :, None, :] - guidance[..., graph.ring, :]      # (*b, F, K, 3)
-    t2 = jnp.sum(diff * diff, axis=-1)
     sr = jnp.asarray(sigma_r, normals.dtype)
-    sr = lift(sr[..., None] if per_face else sr[..., None, None], t2.ndim)
-    w = weights * jnp.exp(-0.5 * t2 / sr ** 2)
-    return safe_normalize(jnp.sum(w[..., None] * normals[..., graph.ring, :], axis=-2))
+    sr2 = lift(sr if per_face else sr[..., None], normals.ndim - 1) ** 2     # (*b, F) or (*b, 1)
+    total = jnp.zeros_like(normals)
+    for k in range(graph.ring.shape[1]):             # one gather per ring slot (module docstring, *Layout*)
+        g = graph.ring[:, k]
+        diff = guidance - guidance[..., g, :]
+        w = weights[..., :, k] * jnp.exp(-0.5 * dot(diff, diff) / sr2)
+        total = total + w[..., None] * normals[..., g, :]
+    return safe_normalize(total)
 
 
 def joint_bilateral_denoising(

@@ -123,8 +123,9 @@ def guidance_normals(
     Returns:
         The guidance normals g, (*batch, F, 3)."""
     best = _best_patch(graph, jax.lax.stop_gradient(patch_inconsistency(graph, normals)))
-    weighted = jnp.where(graph.ring_mask[..., None], (areas[..., None] * normals)[..., graph.ring, :], 0)
-    patch_mean = safe_normalize(jnp.sum(weighted, axis=-2))              # (*b, F, 3)
+    weighted = areas[..., None] * normals
+    patch_mean = safe_normalize(sum(jnp.where(graph.ring_mask[:, k, None], weighted[..., graph.ring[:, k], :], 0)
+                                    for k in range(graph.ring.shape[1])))       # (*b, F, 3), a slot at a time
     return jnp.take_along_axis(patch_mean, jnp.broadcast_to(best[..., None], patch_mean.shape), axis=-2)
 
 

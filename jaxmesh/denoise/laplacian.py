@@ -34,6 +34,7 @@ from .._private import Scalar, lift, safe_divide, segment_sum_rows, segment_sum_
 from ..mesh import Mesh
 from ..operators import taubin_pair, umbrella
 from ._loop import iterate
+from .vertex_rings import VertexRings, ring_umbrella, vertex_rings
 
 BOUNDARY_MODES = ("free", "curve")
 
@@ -48,10 +49,12 @@ def boundary_curve_weights(mesh: Mesh):
     return jnp.where(boundary_vertex[mesh.src], on_boundary, True)
 
 
-def smoothing_operator(mesh: Mesh, boundary: str = "free"):
-    """x -> K x, the umbrella operator, or its boundary-curve form (module docstring)."""
+def smoothing_operator(mesh: Mesh, boundary: str = "free", rings: VertexRings | None = None):
+    """x -> K x, the umbrella operator, or its boundary-curve form (module docstring); with
+    ``boundary="free"``, along the one-rings ``rings`` where given (:func:`~jaxmesh.denoise.ring_umbrella`,
+    several times faster on CPU), else as segment sums over the edge list."""
     if boundary == "free":
-        return lambda x: umbrella(mesh, x)
+        return (lambda x: umbrella(mesh, x)) if rings is None else (lambda x: ring_umbrella(rings, x))
     if boundary != "curve":
         raise ValueError(f"boundary must be one of {BOUNDARY_MODES}, got {boundary!r}")
     w = boundary_curve_weights(mesh)
@@ -63,10 +66,19 @@ def smoothing_operator(mesh: Mesh, boundary: str = "free"):
 
     return op
 
+
+def _rings(mesh: Mesh, rings: VertexRings | None) -> VertexRings | None:
+    """``rings``, or the mesh's own where its connectivity is concrete and one topology (the
+    umbrella then runs along them: :func:`smoothing_operator`), or None (segment sums)."""
+    if rings is None and mesh.src.ndim == 1 and not isinstance(mesh.src, jax.core.Tracer):
+        return vertex_rings(mesh)
+    return rings
+
 __all__ = ["umbrella_flow", "taubin_smoothing", "hc_smoothing", "hc_step"]
 
 
-def umbrella_flow(mesh: Mesh, lam: Scalar = 0.5, iterations: int = 10, boundary: str = "free") -> Mesh:
+def umbrella_flow(mesh: Mesh, lam: Scalar = 0.5, iterations: int = 10, boundary: str = "free",
+                  rings: VertexRings | None = None) -> Mesh:
     """``iterations`` explicit steps of x <- x + λ K x (umbrella flow).
 
     Arguments:
@@ -74,16 +86,18 @@ def umbrella_flow(mesh: Mesh, lam: Scalar = 0.5, iterations: int = 10, boundary:
         lam: the step λ (0 < λ ≤ 1).
         iterations: the number of outer iterations (a Python int: the loop is compiled once).
         boundary: ``"free"`` (the papers' form, default) or ``"curve"`` (boundary vertices follow the boundary).
+        rings: the mesh's :class:`~jaxmesh.denoise.VertexRings` (default: built where the connectivity is
+            concrete and one topology; otherwise segment sums): the same result, faster.
 
     Returns:
         The smoothed mesh."""
-    k = smoothing_operator(mesh, boundary)
+    k = smoothing_operator(mesh, boundary, _rings(mesh, rings))
     lam = lift(jnp.asarray(lam, mesh.dtype)[..., None, None], mesh.vertices.ndim)
     return mesh.with_vertices(iterate(lambda x: x + lam * k(x), mesh.vertices, iterations))
 
 
 def taubin_smoothing(mesh: Mesh, lam: Scalar = 0.5, mu: Scalar = -0.53, iterations: int = 10,
-                     boundary: str = "free") -> Mesh:
+                     boundary: str = "free", rings: VertexRings | None = None) -> Mesh:
     """``iterations`` Taubin pairs: x <- x + λ K x, then x <- x + μ K x (μ < -λ).
 
     Arguments:
@@ -92,10 +106,12 @@ def taubin_smoothing(mesh: Mesh, lam: Scalar = 0.5, mu: Scalar = -0.53, iteratio
         mu: the inflating step μ < −λ.
         iterations: the number of (λ, μ) pairs.
         boundary: ``"free"`` (the papers' form, default) or ``"curve"`` (boundary vertices follow the boundary).
+        rings: the mesh's :class:`~jaxmesh.denoise.VertexRings` (default: built where the connectivity is
+            concrete and one topology; otherwise segment sums): the same result, faster.
 
     Returns:
         The smoothed mesh."""
-    k = smoothing_operator(mesh, boundary)
+    k = smoothing_operator(mesh, boundary, _rings(mesh, rings))
     lam = lift(jnp.asarray(lam, mesh.dtype)[..., None, None], mesh.vertices.ndim)
     mu = lift(jnp.asarray(mu, mesh.dtype)[..., None, None], mesh.vertices.ndim)
 
@@ -103,7 +119,7 @@ def taubin_smoothing(mesh: Mesh, lam: Scalar = 0.5, mu: Scalar = -0.53, iteratio
 
 
 def hc_smoothing(mesh: Mesh, alpha: Scalar = 0.1, beta: Scalar = 0.5, iterations: int = 10,
-                 boundary: str = "free") -> Mesh:
+                 boundary: str = "free", rings: VertexRings | None = None) -> Mesh:
     """``iterations`` HC-Laplacian steps (Vollmer et al. 1999; module docstring).
 
     Arguments:
@@ -112,10 +128,12 @@ def hc_smoothing(mesh: Mesh, alpha: Scalar = 0.1, beta: Scalar = 0.5, iterations
         beta: the weight β of a vertex's own difference b (1 − β goes to its neighbours' mean).
         iterations: the number of outer iterations (a Python int: the loop is compiled once).
         boundary: ``"free"`` (the papers' form, default) or ``"curve"`` (boundary vertices follow the boundary).
+        rings: the mesh's :class:`~jaxmesh.denoise.VertexRings` (default: built where the connectivity is
+            concrete and one topology; otherwise segment sums): the same result, faster.
 
     Returns:
         The smoothed mesh."""
-    k = smoothing_operator(mesh, boundary)
+    k = smoothing_operator(mesh, boundary, _rings(mesh, rings))
     alpha = lift(jnp.asarray(alpha, mesh.dtype)[..., None, None], mesh.vertices.ndim)
     beta = lift(jnp.asarray(beta, mesh.dtype)[..., None, None], mesh.vertices.ndim)
     o = mesh.vertices

@@ -271,7 +271,8 @@ METHODS: dict[str, Method] = {
             "lam": Param(0.5, "continuous", "umbrella step", (0.01, 1.0), True, domain=(0.0, 1.0), closed="(]"),
             "iterations": _it(10),
             "boundary": _BOUNDARY,
-        }, "umbrella flow x <- x + λ K x (Laplacian smoothing)", "Taubin 1995", local=True),
+        }, "umbrella flow x <- x + λ K x (Laplacian smoothing)", "Taubin 1995", local=True,
+            host_inputs={"rings": vertex_rings}),
         Method("taubin", taubin_smoothing, {
             "lam": Param(0.5, "continuous", "shrinking step λ ∈ (0, 1]", (0.01, 1.0), True, domain=(0.0, 1.0),
                          closed="(]"),
@@ -280,7 +281,8 @@ METHODS: dict[str, Method] = {
                         (-1.0, -0.01), domain=(-1.0, 0.0), closed="[)"),
             "iterations": _it(10),
             "boundary": _BOUNDARY,
-        }, "Taubin λ|μ low-pass filter", "Taubin 1995", _taubin_pass_band, local=True),
+        }, "Taubin λ|μ low-pass filter", "Taubin 1995", _taubin_pass_band, local=True,
+            host_inputs={"rings": vertex_rings}),
         Method("hc", hc_smoothing, {
             "alpha": Param(0.1, "continuous", "pull towards the original positions", (0.0, 1.0),
                            domain=(0.0, 1.0), closed="[]"),
@@ -288,7 +290,8 @@ METHODS: dict[str, Method] = {
                           domain=(0.0, 1.0), closed="[]"),
             "iterations": _it(10),
             "boundary": _BOUNDARY,
-        }, "HC Laplacian (extra baseline, not in the thesis)", "Vollmer, Mencl & Müller 1999", local=True),
+        }, "HC Laplacian (extra baseline, not in the thesis)", "Vollmer, Mencl & Müller 1999", local=True,
+            host_inputs={"rings": vertex_rings}),
         Method("cotangent", functools.partial(cotangent_flow, implicit=False), {
             "dt": Param(0.5, "continuous", "normalised explicit step", (0.01, 1.0), True),
             "iterations": _it(5),

