@@ -3,7 +3,9 @@ two other ways of writing them: the umbrella operator K x on the vertex one-ring
 (:func:`jaxmesh.denoise.ring_umbrella`) against segment sums over the directed edge
 list (:func:`jaxmesh.operators.umbrella`); one joint bilateral normal pass and the
 spatial weights on the face rings (:mod:`jaxmesh.denoise.bilateral_normal`) against
-a gather of the whole (F, K, 3) neighbourhood reduced over K.
+a gather of the whole (F, K, 3) neighbourhood reduced over K; the vertex update
+(:func:`jaxmesh.denoise.vertex_update`) along the face graph's vertex tables against
+segment sums over the face corners.
 
     .venv/bin/python benchmarks/bench_ring_sums.py [--mesh spot] [--dtype float32]
 
@@ -31,7 +33,7 @@ import numpy as np  # noqa: E402
 import jaxmesh  # noqa: E402
 from jaxmesh._private import safe_normalize  # noqa: E402
 from jaxmesh.denoise import (face_graph, joint_bilateral_normals, ring_umbrella, spatial_weights,  # noqa: E402
-                             vertex_rings)
+                             vertex_rings, vertex_update)
 from jaxmesh.denoise.face_graph import centroid_spacing, face_centroids  # noqa: E402
 from jaxmesh.geometry import face_areas, face_normals  # noqa: E402
 from jaxmesh.operators import umbrella  # noqa: E402
@@ -81,7 +83,10 @@ def main() -> None:
     w = spatial_weights(mesh, graph, x, 1.0)
     np.testing.assert_allclose(whole_ring_pass(graph, n, w, 0.6), joint_bilateral_normals(graph, n, n, w, 0.6),
                                atol=1e-5)
+    update = lambda table: jax.jit(lambda y: vertex_update(mesh, y, n, STEPS, tangential=0.1,  # noqa: E731
+                                                           graph=table))
     cases = [
+        ("vertex update, t = 0.1", "segment sums", update(None), update(graph), x, x),
         ("umbrella K x", "segment sums", looped(lambda y: y + 0.3 * umbrella(mesh, y)),
          looped(lambda y: y + 0.3 * ring_umbrella(rings, y)), x, x),
         ("bilateral normal pass", "(F, K, 3) gather", looped(lambda m: whole_ring_pass(graph, m, w, 0.6)),

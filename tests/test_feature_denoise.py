@@ -234,6 +234,12 @@ def test_vertex_update_matches_numpy_loop(sphere):
     np.testing.assert_allclose(got, np_vertex_update(v, f, n, 3), atol=1e-12)
     got = vertex_update(sphere, sphere.vertices, jnp.asarray(n), 3, tangential=0.2)
     np.testing.assert_allclose(got, np_vertex_update(v, f, n, 3, 0.2), atol=1e-12)
+    # along the face graph's vertex tables (and batched): the same loop
+    graph, x = face_graph(sphere), jnp.stack([sphere.vertices, sphere.vertices * 1.1])
+    normals = jnp.stack([jnp.asarray(n)] * 2)
+    got = jax.jit(lambda x, g: vertex_update(sphere, x, normals, 3, tangential=0.2, graph=g))(x, graph)
+    np.testing.assert_allclose(got[0], np_vertex_update(v, f, n, 3, 0.2), atol=1e-12)
+    np.testing.assert_allclose(got[1], np_vertex_update(v * 1.1, f, n, 3, 0.2), atol=1e-12)
 
 
 def test_bilateral_normal_matches_numpy_loop(sphere):

@@ -135,7 +135,7 @@ def joint_bilateral_denoising(
             return joint_bilateral_normals(graph, n, guidance(graph, n, areas), w, sigma_r)
 
         n = iterate(normal_pass, face_normals(geo), normal_iterations)
-        return vertex_update(mesh, x, n, vertex_iterations, tangential=tangential)
+        return vertex_update(mesh, x, n, vertex_iterations, tangential=tangential, graph=graph)
 
     return mesh.with_vertices(iterate(step, mesh.vertices, iterations))
 

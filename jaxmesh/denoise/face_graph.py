@@ -30,7 +30,7 @@ the edge arrays.
 from __future__ import annotations
 
 import itertools
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -69,7 +69,12 @@ class FaceGraph(NamedTuple):
       face opposite the edge; ``edge_mask`` is False for boundary and
       non-manifold edges;
     * ``tiers``: the rings split by width (:class:`RingTier`, module docstring),
-      ``tier_order`` (F,): each face's position in the tiers' faces, concatenated.
+      ``tier_order`` (F,): each face's position in the tiers' faces, concatenated;
+    * ``vertex_corners`` (V, C): the corners 3f + k of each vertex (``faces[f, k]``),
+      padding 3F (a zero row appended to per-corner values), for the vertex update's
+      sums (:func:`~jaxmesh.denoise.vertex_update`);
+    * ``vertex_rings``: the vertex one-rings (:func:`~jaxmesh.denoise.vertex_rings`), for
+      its umbrella operator.
     """
 
     ring: Int[Array, "F K"]
@@ -81,6 +86,8 @@ class FaceGraph(NamedTuple):
     edge_mask: Bool[Array, " E"]
     tiers: tuple[RingTier, ...]
     tier_order: Int[Array, " F"]
+    vertex_corners: Int[Array, "V C"]
+    vertex_rings: Any
 
 
 def _padded_rows(mat: sp.csr_matrix, fill: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -198,8 +205,13 @@ def face_graph(mesh: Mesh) -> FaceGraph:
     as32 = lambda a: to_device(np.ascontiguousarray(a, dtype=np.int32))  # noqa: E731
     groups, order = _tiers(ring, ring_mask)
     tiers = tuple(RingTier(as32(f), as32(r), to_device(np.ascontiguousarray(m))) for f, r, m in groups)
+    from .vertex_rings import vertex_rings
+
+    corners = sp.csr_matrix((np.ones(3 * nf), (faces.reshape(-1), np.arange(3 * nf))), shape=(nv, 3 * nf))
+    vertex_corners, _ = _padded_rows(corners, np.full(nv, 3 * nf))
     return FaceGraph(as32(ring), to_device(ring_mask), as32(patch_edges), to_device(patch_edge_mask),
-                     as32(edge_faces), as32(edge_apex), to_device(np.asarray(interior)), tiers, as32(order))
+                     as32(edge_faces), as32(edge_apex), to_device(np.asarray(interior)), tiers, as32(order),
+                     as32(vertex_corners), vertex_rings(mesh))
 
 
 def face_centroids(mesh: Mesh) -> Float[Array, "*batch F 3"]:

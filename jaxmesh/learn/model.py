@@ -51,6 +51,7 @@ from .._exported import stored_jit
 from .._private import dot, lift, one_program, safe_norm, safe_normalize
 from ..denoise._loop import iterate
 from ..denoise.bilateral_normal import joint_bilateral_normals, spatial_weights
+from ..denoise.vertex_rings import ring_umbrella
 from ..denoise.face_graph import FaceGraph, face_graph
 from ..denoise.guided import guidance_normals
 from ..denoise.impulse_repair import impulse_repair
@@ -271,7 +272,8 @@ def _stage(model: LearnedDenoiser, mesh: Mesh, graph: FaceGraph, x, z, theta: di
     cfg = model.config
     lam = theta["lam"][..., None, None]
     mu = -lam / (1 - 0.1 * lam)
-    x = iterate(lambda y: taubin_pair(y, lambda v: umbrella(mesh, v), lam, mu), x, cfg.smooth_iterations)
+    x = iterate(lambda y: taubin_pair(y, lambda v: ring_umbrella(graph.vertex_rings, v), lam, mu), x,
+                cfg.smooth_iterations)
     geo = mesh.with_vertices(x)
     w = spatial_weights(mesh, graph, x, theta["sigma_s"])
     areas = face_areas(geo)
@@ -283,7 +285,7 @@ def _stage(model: LearnedDenoiser, mesh: Mesh, graph: FaceGraph, x, z, theta: di
         return joint_bilateral_normals(graph, n, g, w, sigma_r, per_face=True)
 
     n = iterate(normal_pass, face_normals(geo), cfg.normal_iterations)
-    out = vertex_update(mesh, x, n, cfg.vertex_iterations, tangential=theta["tangential"])
+    out = vertex_update(mesh, x, n, cfg.vertex_iterations, tangential=theta["tangential"], graph=graph)
     if not cfg.gated:
         return out
     return x + theta["step"][..., None, None] * (out - x)
