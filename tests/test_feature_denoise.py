@@ -150,7 +150,7 @@ def test_ring_tiers_are_the_cheapest_split_and_cover_every_face():
     the sizes present), and the tiers of a UV sphere (poles of valence 24 among rings of ~13)
     partition its faces, each ring cut to a width that keeps it whole."""
     from jaxmesh.denoise import RING_TIERS, RingTier, ring_tiers
-    from jaxmesh.denoise.face_graph import _TIER_COST
+    from jaxmesh.denoise.tiers import _TIER_COST
 
     rng = np.random.default_rng(0)
     for counts in ([13] * 900 + [29] * 3, rng.integers(9, 20, 500).tolist() + [41] * 20, [7] * 10):

@@ -197,15 +197,15 @@ def _fan_with_an_isolated_vertex() -> jaxmesh.Mesh:
 
 
 @pytest.mark.parametrize("name", ["bumpy_grid", "fan"])
-def test_ring_umbrella_is_the_umbrella_bit_for_bit(request, name):
+def test_ring_umbrella_is_the_umbrella(request, name):
     from jaxmesh.denoise import ring_umbrella, vertex_rings
 
     mesh = _fan_with_an_isolated_vertex() if name == "fan" else request.getfixturevalue(name)
     rings = vertex_rings(mesh)
     x = jax.random.normal(jax.random.PRNGKey(3), (2, mesh.num_vertices, 3), mesh.dtype)
-    # the neighbours summed in the edge list's order: the same bits as the segment sums
-    np.testing.assert_array_equal(ring_umbrella(rings, x[0]), O.umbrella(mesh, x[0]))
-    np.testing.assert_array_equal(jax.jit(ring_umbrella)(rings, x), O.umbrella(mesh, x))
+    # the neighbours summed in the edge list's order: the segment sums' values up to rounding
+    np.testing.assert_allclose(ring_umbrella(rings, x[0]), O.umbrella(mesh, x[0]), rtol=0, atol=1e-14)
+    np.testing.assert_allclose(jax.jit(ring_umbrella)(rings, x), O.umbrella(mesh, x), rtol=0, atol=1e-14)
     if name == "fan":
         assert len(rings.tiers) > 1 and np.all(np.asarray(ring_umbrella(rings, x[0]))[-1] == 0)
 

@@ -10,7 +10,8 @@ differentiable with respect to its continuous parameters and the positions.
 from ._loop import progress
 from .anisotropic import anisotropic_diffusion
 from .bilateral_normal import bilateral_normal_filtering, joint_bilateral_normals, spatial_weights
-from .face_graph import RING_TIERS, FaceGraph, RingTier, centroid_spacing, face_centroids, face_graph, ring_tiers
+from .face_graph import FaceGraph, RingTier, centroid_spacing, face_centroids, face_graph
+from .tiers import RING_TIERS, ring_tiers
 from .guided import guidance_normals, guided_normal_filtering, patch_inconsistency
 from .impulse_repair import impulse_repair, mixture_posterior, scale_mixture
 from .l0 import edge_operator, l0_denoising, mean_dihedral_angle

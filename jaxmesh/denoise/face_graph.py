@@ -18,7 +18,7 @@ vertices K is two to three times the mean ring.  What is quadratic in the ring
 on the rings split into **tiers** (:class:`RingTier`): each tier holds the faces
 whose rings fit its width k_t, with their rings cut to k_t.  The widths minimise
 Σ_t |tier t| · k_t(k_t + 1)/2, the pairs computed, over at most ``RING_TIERS``
-tiers (:func:`ring_tiers`).
+tiers (:func:`~jaxmesh.denoise.ring_tiers`).
 
 All of this depends on the connectivity only, so :func:`face_graph` builds it
 with numpy/scipy once per mesh, as padded integer arrays with masks (the
@@ -29,7 +29,6 @@ the edge arrays.
 
 from __future__ import annotations
 
-import itertools
 from typing import Any, NamedTuple
 
 import jax
@@ -40,13 +39,11 @@ from jaxtyping import Array, Bool, Float, Int
 
 from .._private import lift, safe_divide, safe_norm
 from ..mesh import Mesh, ranks_in_runs, to_device
+from .tiers import ring_tiers
+from .vertex_rings import vertex_rings
 
-__all__ = ["FaceGraph", "RingTier", "RING_TIERS", "face_graph", "ring_tiers", "face_centroids", "centroid_spacing"]
+__all__ = ["FaceGraph", "RingTier", "face_graph", "face_centroids", "centroid_spacing"]
 
-#: the most tiers the rings are split into (module docstring)
-RING_TIERS = 3
-#: the cost of one more tier, in pairs (a tier is one more loop over its faces)
-_TIER_COST = 4096
 
 
 class RingTier(NamedTuple):
@@ -107,37 +104,9 @@ def _padded_rows(mat: sp.csr_matrix, fill: np.ndarray) -> tuple[np.ndarray, np.n
     return index, mask
 
 
-def ring_tiers(counts: np.ndarray, most: int = RING_TIERS, pairs: bool = True) -> list[int]:
-    """The tiers' widths k_1 < … < k_T (T ≤ ``most``, k_T the widest ring) minimising
-    Σ_t n_t · w(k_t) + T · c, n_t the rows whose ring size lies in (k_{t−1}, k_t], w(k) the
-    work per row (k(k + 1)/2 pairs, or k entries with ``pairs=False``) and c the cost of a
-    tier (module docstring).  Exhaustive over the ring sizes present.
-
-    Arguments:
-        counts: each row's ring size, (F,) (at least 1).
-        most: the most tiers.
-        pairs: the work is quadratic in the ring (pairs) rather than linear (entries).
-
-    Returns:
-        The widths, increasing."""
-    sizes, freq = np.unique(np.asarray(counts, np.int64), return_counts=True)
-    if sizes.size == 0:
-        return [1]
-    below = np.concatenate([[0], np.cumsum(freq)])           # faces with size < sizes[i]: below[i]
-
-    def cost(widths) -> float:
-        total, start = len(widths) * _TIER_COST, 0
-        for i in widths:                                       # widths as indices into sizes
-            total += float((below[i + 1] - below[start]) * (sizes[i] * (sizes[i] + 1) / 2 if pairs else sizes[i]))
-            start = i + 1
-        return total
-    last = sizes.size - 1
-    options = [(*inner, last) for t in range(most) for inner in itertools.combinations(range(last), t)]
-    return [int(sizes[i]) for i in min(options, key=cost)]
-
-
 def _tiers(ring: np.ndarray, ring_mask: np.ndarray) -> tuple[list[tuple], np.ndarray]:
-    """(faces, ring, mask) of each tier (:func:`ring_tiers`) and each face's position in their concatenation."""
+    """(faces, ring, mask) of each tier (:func:`~jaxmesh.denoise.ring_tiers`) and each face's position in
+    their concatenation."""
     counts = ring_mask.sum(axis=1)
     groups, lower = [], 0
     for k in ring_tiers(counts):
@@ -205,8 +174,6 @@ def face_graph(mesh: Mesh) -> FaceGraph:
     as32 = lambda a: to_device(np.ascontiguousarray(a, dtype=np.int32))  # noqa: E731
     groups, order = _tiers(ring, ring_mask)
     tiers = tuple(RingTier(as32(f), as32(r), to_device(np.ascontiguousarray(m))) for f, r, m in groups)
-    from .vertex_rings import vertex_rings
-
     corners = sp.csr_matrix((np.ones(3 * nf), (faces.reshape(-1), np.arange(3 * nf))), shape=(nv, 3 * nf))
     vertex_corners, _ = _padded_rows(corners, np.full(nv, 3 * nf))
     return FaceGraph(as32(ring), to_device(ring_mask), as32(patch_edges), to_device(patch_edge_mask),

@@ -38,7 +38,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
-from .._private import Scalar, one_program, safe_normalize
+from .._private import Scalar, one_program, safe_normalize, slot_sum
 from ..mesh import Mesh
 from .bilateral_normal import joint_bilateral_denoising
 from .face_graph import FaceGraph, RingTier
@@ -124,8 +124,8 @@ def guidance_normals(
         The guidance normals g, (*batch, F, 3)."""
     best = _best_patch(graph, jax.lax.stop_gradient(patch_inconsistency(graph, normals)))
     weighted = areas[..., None] * normals
-    patch_mean = safe_normalize(sum(jnp.where(graph.ring_mask[:, k, None], weighted[..., graph.ring[:, k], :], 0)
-                                    for k in range(graph.ring.shape[1])))       # (*b, F, 3), a slot at a time
+    patch_mean = safe_normalize(slot_sum(lambda s: jnp.where(s[1][:, None], weighted[..., s[0], :], 0),
+                                         (graph.ring.T, graph.ring_mask.T), jnp.zeros_like(normals)))   # (*b, F, 3)
     return jnp.take_along_axis(patch_mean, jnp.broadcast_to(best[..., None], patch_mean.shape), axis=-2)
 
 

@@ -13,10 +13,9 @@ whose degree fits its width, with their rows cut to it.
 Like :func:`jaxmesh.denoise.face_graph`, :func:`vertex_rings` needs concrete connectivity;
 pass its result as ``rings=`` to call a flow under ``jit`` with the mesh traced.
 
-The sums along a tier are written out slot by slot, one gather of (W, 3) rows per
-slot: XLA's CPU backend runs that several times faster than a scatter-add over the
-edge list or a gather of the whole (W, k, 3) table reduced over k
-(``benchmarks/bench_ring_sums.py``).
+The sums along a tier run slot by slot in a loop, one gather of (W, 3) rows per
+slot (:func:`jaxmesh._private.slot_sum`): XLA's CPU backend runs that several times
+faster than a scatter-add over the edge list (``benchmarks/bench_ring_sums.py``).
 """
 
 from __future__ import annotations
@@ -28,9 +27,9 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
-from .._private import lift
+from .._private import lift, slot_sum
 from ..mesh import Mesh, to_device
-from .face_graph import RING_TIERS, ring_tiers
+from .tiers import RING_TIERS, ring_tiers
 
 __all__ = ["VertexTier", "VertexRings", "vertex_rings", "ring_umbrella"]
 
@@ -101,8 +100,9 @@ def ring_umbrella(rings: VertexRings, x: Float[Array, "*batch V d"]) -> Float[Ar
         (*batch, V, d)."""
     parts = []
     for tier in rings.tiers:
-        total = sum(jnp.where(lift(tier.mask[:, j, None], x.ndim), x[..., tier.neighbors[:, j], :], 0)
-                    for j in range(tier.neighbors.shape[1]))
+        init = jnp.zeros((*x.shape[:-2], tier.vertices.shape[0], x.shape[-1]), x.dtype)
+        total = slot_sum(lambda s: jnp.where(lift(s[1][:, None], x.ndim), x[..., s[0], :], 0),
+                         (tier.neighbors.T, tier.mask.T), init)
         d = lift(jnp.sum(tier.mask, axis=-1)[:, None], x.ndim)
         mean = total / jnp.maximum(d, 1).astype(x.dtype)
         parts.append(jnp.where(d > 0, mean - x[..., tier.vertices, :], 0))

@@ -38,7 +38,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 from jaxtyping import Array, Float, Int
 
-from .._private import dot, lift, safe_divide, safe_normalize, segment_sum_rows, segment_sum_scalars
+from .._private import dot, lift, safe_divide, safe_normalize, segment_sum_rows, segment_sum_scalars, slot_sum
 from ..mesh import Mesh
 from ..operators import umbrella
 from ._loop import iterate
@@ -55,7 +55,8 @@ def _corner_sums(corners: Int[Array, "V C"] | None, values: Float[Array, "*batch
     if corners is None:
         return segment_sum_rows(values, faces.reshape(-1), num_vertices)
     padded = jnp.concatenate([values, jnp.zeros_like(values[..., :1, :])], axis=-2)
-    return sum(padded[..., corners[:, k], :] for k in range(corners.shape[1]))
+    init = jnp.zeros((*values.shape[:-2], num_vertices, values.shape[-1]), values.dtype)
+    return slot_sum(lambda slot: padded[..., slot, :], corners.T, init)
 
 
 def vertex_update(
