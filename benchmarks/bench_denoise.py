@@ -5,7 +5,7 @@
 * per-iteration time (a 10-iteration call / 10, jitted, warmed up, median of
   --repeat) of the jaxmesh kernel flow (on its one-ring tiers, as for a concrete mesh,
   and on segment sums, as under ``jit`` with the mesh traced and no ``rings=``) and
-  Laplacian flow, against Open3D
+  Laplacian (umbrella) flow (the same two ways), against Open3D
   ``filter_smooth_laplacian``, trimesh ``filter_laplacian`` (volume constraint
   off) and a plain vectorised numpy implementation of the same kernel flow;
 * compile time of a 5-iteration kernel flow (first call minus a warm call);
@@ -99,18 +99,22 @@ def bench(mesh: jaxmesh.Mesh, label: str, repeat: int, flag: bool) -> dict:
     rings = vertex_rings(noisy)
     k10 = jax.jit(lambda m, r: kernel_diffusion(m, 0.4, 10, rings=r))
     s10 = jax.jit(lambda m: kernel_diffusion(m, 0.4, 10))          # traced mesh, no rings: segment sums
-    l10 = jax.jit(lambda m: umbrella_flow(m, 0.5, 10))
+    l10 = jax.jit(lambda m, r: umbrella_flow(m, 0.5, 10, rings=r))
+    ls10 = jax.jit(lambda m: umbrella_flow(m, 0.5, 10))          # traced mesh, no rings: segment sums
     jax.block_until_ready(k10(noisy, rings).vertices)
     jax.block_until_ready(s10(noisy).vertices)
-    jax.block_until_ready(l10(noisy).vertices)
+    jax.block_until_ready(l10(noisy, rings).vertices)
+    jax.block_until_ready(ls10(noisy).vertices)
     # the flows alternate, so that a change of the machine's speed reaches all of them
-    kernel, segments, laplacian = [], [], []
+    kernel, segments, laplacian, laplacian_segments = [], [], [], []
     for _ in range(repeat):
         kernel.append(median_time(lambda: jax.block_until_ready(k10(noisy, rings).vertices), 1) / 10)
         segments.append(median_time(lambda: jax.block_until_ready(s10(noisy).vertices), 1) / 10)
-        laplacian.append(median_time(lambda: jax.block_until_ready(l10(noisy).vertices), 1) / 10)
+        laplacian.append(median_time(lambda: jax.block_until_ready(l10(noisy, rings).vertices), 1) / 10)
+        laplacian_segments.append(median_time(lambda: jax.block_until_ready(ls10(noisy).vertices), 1) / 10)
     res["jaxmesh kernel"], res["jaxmesh laplacian"] = statistics.median(kernel), statistics.median(laplacian)
     res["jaxmesh kernel, segment sums"] = statistics.median(segments)
+    res["jaxmesh laplacian, segment sums"] = statistics.median(laplacian_segments)
     try:
         import open3d as o3d
     except ImportError:
@@ -181,12 +185,12 @@ def main() -> None:
         k = r["jaxmesh kernel"]
         print(f"\n{r['mesh']} (V={r['V']}): seconds per iteration, and peer / jaxmesh kernel")
         for name in ("jaxmesh kernel", "jaxmesh kernel, segment sums", "jaxmesh laplacian",
-                     "Open3D filter_smooth_laplacian",
+                     "jaxmesh laplacian, segment sums", "Open3D filter_smooth_laplacian",
                      "trimesh filter_laplacian", "numpy kernel"):
             print(f"  {name:32s} {r[name] * 1e3:9.2f} ms   {r[name] / k:6.2f}x")
-        print(f"  kernel flow / umbrella (Laplacian) flow, per iteration: "
-              f"{r['jaxmesh kernel'] / r['jaxmesh laplacian']:.2f}x (segment sums: "
-              f"{r['jaxmesh kernel, segment sums'] / r['jaxmesh laplacian']:.2f}x)")
+        print(f"  kernel flow / umbrella (Laplacian) flow, per iteration, both on the one-ring tiers: "
+              f"{r['jaxmesh kernel'] / r['jaxmesh laplacian']:.2f}x; both by segment sums: "
+              f"{r['jaxmesh kernel, segment sums'] / r['jaxmesh laplacian, segment sums']:.2f}x")
         if r["Open3D filter_smooth_laplacian"] != r["Open3D filter_smooth_laplacian"]:
             print("  (Open3D is not installed: its row is NaN)")
         print(f"  jaxmesh laplacian vs trimesh laplacian: trimesh / jaxmesh = "
