@@ -29,7 +29,7 @@ the edge arrays.
 
 from __future__ import annotations
 
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -40,10 +40,9 @@ from jaxtyping import Array, Bool, Float, Int
 from .._private import lift, safe_divide, safe_norm
 from ..mesh import Mesh, ranks_in_runs, to_device
 from .tiers import ring_tiers
-from .vertex_rings import vertex_rings
+from .vertex_rings import VertexRings, vertex_rings
 
 __all__ = ["FaceGraph", "RingTier", "face_graph", "face_centroids", "centroid_spacing"]
-
 
 
 class RingTier(NamedTuple):
@@ -84,7 +83,7 @@ class FaceGraph(NamedTuple):
     tiers: tuple[RingTier, ...]
     tier_order: Int[Array, " F"]
     vertex_corners: Int[Array, "V C"]
-    vertex_rings: Any
+    vertex_rings: VertexRings
 
 
 def _padded_rows(mat: sp.csr_matrix, fill: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

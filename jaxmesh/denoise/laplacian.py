@@ -74,6 +74,7 @@ def _rings(mesh: Mesh, rings: VertexRings | None) -> VertexRings | None:
         return vertex_rings(mesh)
     return rings
 
+
 __all__ = ["umbrella_flow", "taubin_smoothing", "hc_smoothing", "hc_step"]
 
 
