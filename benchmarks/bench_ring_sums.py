@@ -17,7 +17,6 @@ as the filters run them), under the ``jaxmesh`` command's XLA flag
 from __future__ import annotations
 
 import argparse
-import time
 
 from jaxmesh.compiler import prefer_fast_cpu_compiles
 
@@ -38,15 +37,9 @@ from jaxmesh.denoise.face_graph import centroid_spacing, face_centroids  # noqa:
 from jaxmesh.geometry import face_areas, face_normals  # noqa: E402
 from jaxmesh.operators import umbrella  # noqa: E402
 
+from bench_dot import ms  # noqa: E402  (same folder)
+
 STEPS = 20
-
-
-def ms(f, *args, repeat: int = 20) -> float:
-    jax.block_until_ready(f(*args))
-    t = time.perf_counter()
-    for _ in range(repeat):
-        jax.block_until_ready(f(*args))
-    return (time.perf_counter() - t) / repeat * 1e3
 
 
 def looped(step):

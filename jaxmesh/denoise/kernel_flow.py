@@ -44,7 +44,7 @@ from .._private import Scalar, lift, one_program, safe_divide, segment_sum_rows
 from ..mesh import Mesh
 from ..operators import neighbor_sum
 from ._loop import iterate
-from .vertex_rings import VertexRings, VertexTier, vertex_rings
+from .vertex_rings import VertexRings, VertexTier, rings_where_concrete
 
 __all__ = ["neighborhood_covariances", "kernel_weights", "kernel_step", "kernel_diffusion",
            "VARIANTS"]
@@ -256,7 +256,6 @@ def kernel_diffusion(
         The smoothed mesh."""
     if variant not in VARIANTS:
         raise ValueError(f"variant must be one of {VARIANTS}, got {variant!r}")
-    if rings is None and mesh.src.ndim == 1 and not isinstance(mesh.src, jax.core.Tracer):
-        rings = vertex_rings(mesh)
+    rings = rings_where_concrete(mesh, rings)
     x = iterate(lambda x: kernel_step(mesh, x, lam, variant, safeguard, rings), mesh.vertices, iterations)
     return mesh.with_vertices(x)

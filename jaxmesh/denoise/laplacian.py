@@ -34,7 +34,7 @@ from .._private import Scalar, lift, safe_divide, segment_sum_rows, segment_sum_
 from ..mesh import Mesh
 from ..operators import taubin_pair, umbrella
 from ._loop import iterate
-from .vertex_rings import VertexRings, ring_umbrella, vertex_rings
+from .vertex_rings import VertexRings, ring_umbrella, rings_where_concrete
 
 BOUNDARY_MODES = ("free", "curve")
 
@@ -67,14 +67,6 @@ def smoothing_operator(mesh: Mesh, boundary: str = "free", rings: VertexRings | 
     return op
 
 
-def _rings(mesh: Mesh, rings: VertexRings | None) -> VertexRings | None:
-    """``rings``, or the mesh's own where its connectivity is concrete and one topology (the
-    umbrella then runs along them: :func:`smoothing_operator`), or None (segment sums)."""
-    if rings is None and mesh.src.ndim == 1 and not isinstance(mesh.src, jax.core.Tracer):
-        return vertex_rings(mesh)
-    return rings
-
-
 __all__ = ["umbrella_flow", "taubin_smoothing", "hc_smoothing", "hc_step"]
 
 
@@ -92,7 +84,7 @@ def umbrella_flow(mesh: Mesh, lam: Scalar = 0.5, iterations: int = 10, boundary:
 
     Returns:
         The smoothed mesh."""
-    k = smoothing_operator(mesh, boundary, _rings(mesh, rings))
+    k = smoothing_operator(mesh, boundary, rings_where_concrete(mesh, rings))
     lam = lift(jnp.asarray(lam, mesh.dtype)[..., None, None], mesh.vertices.ndim)
     return mesh.with_vertices(iterate(lambda x: x + lam * k(x), mesh.vertices, iterations))
 
@@ -112,7 +104,7 @@ def taubin_smoothing(mesh: Mesh, lam: Scalar = 0.5, mu: Scalar = -0.53, iteratio
 
     Returns:
         The smoothed mesh."""
-    k = smoothing_operator(mesh, boundary, _rings(mesh, rings))
+    k = smoothing_operator(mesh, boundary, rings_where_concrete(mesh, rings))
     lam = lift(jnp.asarray(lam, mesh.dtype)[..., None, None], mesh.vertices.ndim)
     mu = lift(jnp.asarray(mu, mesh.dtype)[..., None, None], mesh.vertices.ndim)
 
@@ -134,7 +126,7 @@ def hc_smoothing(mesh: Mesh, alpha: Scalar = 0.1, beta: Scalar = 0.5, iterations
 
     Returns:
         The smoothed mesh."""
-    k = smoothing_operator(mesh, boundary, _rings(mesh, rings))
+    k = smoothing_operator(mesh, boundary, rings_where_concrete(mesh, rings))
     alpha = lift(jnp.asarray(alpha, mesh.dtype)[..., None, None], mesh.vertices.ndim)
     beta = lift(jnp.asarray(beta, mesh.dtype)[..., None, None], mesh.vertices.ndim)
     o = mesh.vertices

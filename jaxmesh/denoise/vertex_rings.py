@@ -87,6 +87,15 @@ def vertex_rings(mesh: Mesh, most: int = RING_TIERS) -> VertexRings:
     return VertexRings(tiers, as32(order))
 
 
+def rings_where_concrete(mesh: Mesh, rings: VertexRings | None) -> VertexRings | None:
+    """``rings`` if given, else the mesh's own where its connectivity is concrete and one topology
+    (built here), else None (the caller falls back to segment sums): the default of every flow that
+    takes ``rings=``."""
+    if rings is None and mesh.src.ndim == 1 and not isinstance(mesh.src, jax.core.Tracer):
+        return vertex_rings(mesh)
+    return rings
+
+
 def ring_umbrella(rings: VertexRings, x: Float[Array, "*batch V d"]) -> Float[Array, "*batch V d"]:
     """(K x)_i = (1/d_i) Σ_{j~i} x_j − x_i (:func:`jaxmesh.operators.umbrella`) as sums along the
     padded one-rings, one neighbour slot at a time (module docstring); 0 at isolated vertices.
