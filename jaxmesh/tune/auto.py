@@ -31,7 +31,8 @@ picked again (:mod:`jaxmesh.tune.second_pilot`): a leader at a new count joins t
 
 **The decision.**  The race's winner wins (with ``second_pilot``: the leader least on the
 blend's fresh draws), unless a convex blend of leaders (the best of each path and of each
-fixed method) is estimated better on those draws (:mod:`jaxmesh.tune.blend`).  It is compared
+fixed method) is estimated better on those draws (:mod:`jaxmesh.tune.blend`; not under the held-out
+estimate, whose blend gains do not predict the true ones: the denoising guide).  It is compared
 with doing nothing, whose error at the same noise level is (1 + a²) tr(AᵀAΣ) (held out: the
 tilt of the draws' inputs themselves): if the choice does not beat it, ``improved`` is False.
 **Large meshes.**  On a mesh of more than ``PATCH_FACTOR × search_vertices``
@@ -191,7 +192,7 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
             ``"impulsive"`` (the two-level law, forced).
         draws: recorruptions per candidate.
         blend_draws: fresh recorruptions on which the blends of the leaders are fitted and judged
-            (:mod:`jaxmesh.tune.blend`); 0: no blending.
+            (:mod:`jaxmesh.tune.blend`; the recorrupted estimate only); 0: no blending.
         blend_size: the most denoisers one blend mixes (1: no blending; 2: pairs).
         snapshots: each search path's leader is also blended at these multiples of its
             iteration count (``()``: the leaders alone).
@@ -358,7 +359,7 @@ def _rank(host: HostMesh, core, ell, candidates, paths, s_vertex, s_t, draws, bl
         again = repick_counts(noisy, leaders, paths, inputs, targets, nu2, ell, auxes, (1 + 1 / a**2) * trace, pin)
     rows = leaders + snapshot_rows(leaders[len(leaders) - len(paths):], snapshots, leaders)
     rows += [r for r, was in zip(again, leaders) if r.params != was.params] if second else []
-    if second or (blend_draws and blend_size > 1 and len(rows) > 1):
+    if second or (held is None and blend_draws and blend_size > 1 and len(rows) > 1):
         fresh = draw(blend_draws, BLEND_SALT)
         blended = [Candidate(*r[:2]) for r in rows]
         gram = tilt_gram(np.stack(_tilts(noisy, *fresh[:2], blended, auxes, nu, ell, _path_methods(paths), pin)))
