@@ -151,31 +151,21 @@ def test_the_held_out_estimate_orders_impulse_repair_as_the_clean_mesh_does(ball
 
 def test_too_few_untouched_faces_fall_back_to_the_recorrupted_estimate(ball, monkeypatch):
     """Where fewer than HELD_OUT_MIN_FACES faces can be scored (here: the threshold raised past the
-    mesh's faces), the per-vertex recorruption ranks, with its noise constant."""
-    import jaxmesh.tune.auto as auto
-
-    noisy = jaxmesh.add_impulsive_noise(ball, 0.5, 3, fraction=0.5)
-    kw = dict(candidates=[Candidate("taubin", {"iterations": 5})], impulsive_candidates=(), paths=(), blend_draws=0)
-    held = choose_denoiser(noisy, **kw)
-    monkeypatch.setattr(auto, "HELD_OUT_MIN_FACES", ball.num_faces + 1)
-    c = choose_denoiser(noisy, **kw)
-    assert held.estimator == "held_out" and c.noise_law == "impulsive" and c.estimator == "recorrupted"
-    assert c.table[0][2] != held.table[0][2]
-
-
-def test_nothing_is_blended_under_the_held_out_estimate(ball, monkeypatch):
-    """Ranked by the held-out estimate the race's winner is the choice, alone: the blend stage does not
-    run (its Gram matrix is never formed); ranked by the recorrupted estimate (the fallback) it does."""
+    mesh's faces), the per-vertex recorruption ranks, with its noise constant.  Ranked by the held-out
+    estimate the race's winner is the choice, alone (the blend stage does not run: its Gram matrix is
+    never formed); ranked by the recorruption, the leaders' blend is judged."""
     import jaxmesh.tune.auto as auto
 
     grams, real = [], auto.tilt_gram
     monkeypatch.setattr(auto, "tilt_gram", lambda tilts: grams.append(len(tilts)) or real(tilts))
     noisy = jaxmesh.add_impulsive_noise(ball, 0.5, 3, fraction=0.5)
-    kw = dict(candidates=[Candidate("taubin", {"iterations": 5}), Candidate("impulse_repair", {"alpha": 0.3})],
+    kw = dict(candidates=[Candidate("taubin", {"iterations": 5}), Candidate("impulse_repair", {"iterations": 1})],
               impulsive_candidates=(), paths=(), blend_draws=2)
     held = choose_denoiser(noisy, **kw)
     assert held.estimator == "held_out" and len(held.components) == 1 and grams == []
     assert held.components[0].weight == 1.0 and (held.method, held.params) == held.table[0][:2]
     monkeypatch.setattr(auto, "HELD_OUT_MIN_FACES", ball.num_faces + 1)
-    fallback = choose_denoiser(noisy, **kw)
-    assert fallback.estimator == "recorrupted" and grams == [2]
+    c = choose_denoiser(noisy, **kw)
+    assert c.noise_law == "impulsive" and c.estimator == "recorrupted" and grams == [2]
+    assert c.table[0][2] != held.table[0][2]
+
