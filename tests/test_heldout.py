@@ -168,4 +168,3 @@ def test_too_few_untouched_faces_fall_back_to_the_recorrupted_estimate(ball, mon
     c = choose_denoiser(noisy, **kw)
     assert c.noise_law == "impulsive" and c.estimator == "recorrupted" and grams == [2]
     assert c.table[0][2] != held.table[0][2]
-
