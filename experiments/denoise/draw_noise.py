@@ -58,12 +58,13 @@ PAIRS = 8
 A = 0.5
 
 
-def _path(noisy):
-    """Positions after 1..COUNT Taubin iterations from each start, one program: (COUNT, V, 3) per start."""
+@jax.jit
+def _path(noisy, x0):
+    """Positions after 1..COUNT Taubin iterations from x0, one program: (COUNT, V, 3)."""
     def step(x, _):
         x = taubin_smoothing(noisy.with_vertices(x), lam=LAM, mu=-LAM, iterations=1).vertices
         return x, x
-    return jax.jit(lambda x0: jax.lax.scan(step, x0, None, length=COUNT)[1])
+    return jax.lax.scan(step, x0, None, length=COUNT)[1]
 
 
 def _sums(noisy, nu, ell, outputs, target) -> np.ndarray:
@@ -80,8 +81,8 @@ def cell(name: str, sigma: float, model: str) -> dict:
     pilot = noisy.with_vertices(run_setting(noisy, noisy.vertices, "guided_normal", {}, host.aux("guided_normal")))
     nu, n = face_normals(pilot), vertex_normals(pilot, "area")
     ell = float(mean_edge_length(noisy))
-    y, run = noisy.vertices, _path(noisy)
-    clean_path = run(y)
+    y = noisy.vertices
+    clean_path = _path(noisy, y)
     angle = np.array([float(mean_normal_angle_error(clean, noisy.with_vertices(x))) for x in clean_path])
     tilt = _sums(noisy, face_normals(clean), ell, clean_path, clean.vertices)
 
@@ -92,9 +93,9 @@ def cell(name: str, sigma: float, model: str) -> dict:
         return normal + s_t * (xi - jnp.sum(xi * n, axis=-1, keepdims=True) * n)
 
     def estimate(z):
-        return _sums(noisy, nu, ell, run(y + A * z), y - z / A)
+        return _sums(noisy, nu, ell, _path(noisy, y + A * z), y - z / A)
     singles = [estimate(field(k)) for k in range(2 * PAIRS)]
-    anti = [(estimate(field(k)) + estimate(-field(k))) / 2 for k in range(PAIRS)]
+    anti = [(singles[k] + estimate(-field(k))) / 2 for k in range(PAIRS)]      # z_k's own run reused
     pairs = [int(np.argmin(singles[2 * i] + singles[2 * i + 1])) + 1 for i in range(PAIRS)]
     antithetic = [int(np.argmin(a)) + 1 for a in anti]
     every = int(np.argmin(np.sum(singles, axis=0))) + 1
