@@ -29,7 +29,7 @@ import scipy.sparse as sp
 from . import sparse
 from .mesh import Mesh
 
-__all__ = ["HostMesh", "as_host"]
+__all__ = ["HostMesh", "as_host", "aux_key"]
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -105,8 +105,19 @@ class HostMesh:
 
         m = as_method(method)
         builders = {**{k: m.params[k].build for k in m.aux}, **m.host_inputs}
-        return {k: self.memo(f"aux:{b.__module__}.{b.__qualname__}", functools.partial(b, self.mesh))
-                for k, b in builders.items()}
+        return {k: self.memo(aux_key(b), functools.partial(b, self.mesh)) for k, b in builders.items()}
+
+
+def aux_key(build: Callable) -> str:
+    """The :meth:`HostMesh.memo` name under which :meth:`HostMesh.aux` keeps what ``build`` made:
+    a value stored there first (a padded table, say) is the one every method is given.
+
+    Arguments:
+        build: a builder of a method's auxiliary input (``Param.build``, ``Method.host_inputs``).
+
+    Returns:
+        The name."""
+    return f"aux:{build.__module__}.{build.__qualname__}"
 
 
 def as_host(mesh: Mesh | HostMesh) -> HostMesh:

@@ -8,6 +8,7 @@ import pytest
 import trimesh
 
 import jaxmesh
+import jaxmesh.tune.heldout
 from jaxmesh.denoise import METHODS
 from jaxmesh.geometry import face_normals, mean_edge_length, vertex_normals
 from jaxmesh.metrics import mean_normal_angle_error
@@ -164,7 +165,7 @@ def test_too_few_untouched_faces_fall_back_to_the_recorrupted_estimate(ball, mon
     held = choose_denoiser(noisy, **kw)
     assert held.estimator == "held_out" and len(held.components) == 1 and grams == []
     assert held.components[0].weight == 1.0 and (held.method, held.params) == held.table[0][:2]
-    monkeypatch.setattr(auto, "HELD_OUT_MIN_FACES", ball.num_faces + 1)
+    monkeypatch.setattr(jaxmesh.tune.heldout, "HELD_OUT_MIN_FACES", ball.num_faces + 1)
     c = choose_denoiser(noisy, **kw)
     assert c.noise_law == "impulsive" and c.estimator == "recorrupted" and grams == [2]
     assert c.table[0][2] != held.table[0][2]

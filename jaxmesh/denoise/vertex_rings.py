@@ -31,7 +31,7 @@ from .._private import lift, slot_sum
 from ..mesh import Mesh, to_device
 from .tiers import RING_TIERS, ring_tiers
 
-__all__ = ["VertexTier", "VertexRings", "vertex_rings", "ring_umbrella"]
+__all__ = ["VertexTier", "VertexRings", "vertex_rings", "neighbor_table", "tiered_rings", "ring_umbrella"]
 
 
 class VertexTier(NamedTuple):
@@ -51,15 +51,15 @@ class VertexRings(NamedTuple):
     order: Int[Array, " V"]
 
 
-def vertex_rings(mesh: Mesh, most: int = RING_TIERS) -> VertexRings:
-    """Build the :class:`VertexRings` of a single mesh (host, numpy; needs concrete connectivity).
+def neighbor_table(mesh: Mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each vertex's neighbours in the mesh's directed-edge order, padded to the widest row
+    (host, numpy; needs concrete connectivity).
 
     Arguments:
         mesh: a single mesh (one topology) with concrete (not traced) connectivity.
-        most: the most tiers.
 
     Returns:
-        Its :class:`VertexRings`."""
+        (table (V, k) with padding the vertex itself, mask (V, k), degree (V,))."""
     if mesh.src.ndim != 1:
         raise ValueError("vertex_rings takes one topology, not a stacked batch of meshes")
     try:
@@ -76,15 +76,43 @@ def vertex_rings(mesh: Mesh, most: int = RING_TIERS) -> VertexRings:
     slot = np.arange(src.size) - start[src]
     table[src, slot] = dst
     mask[src, slot] = True
-    rows = np.maximum(degree, 1)                      # an isolated vertex: one masked slot
-    widths = ring_tiers(rows, most, pairs=False)
-    groups = [np.flatnonzero((rows > lower) & (rows <= k)) for lower, k in zip([0, *widths[:-1]], widths)]
-    order = np.empty(n, np.int64)
-    order[np.concatenate(groups)] = np.arange(n)
+    return table, mask, degree
+
+
+def tiered_rings(table: np.ndarray, mask: np.ndarray, groups: list[np.ndarray], widths: list[int]) -> VertexRings:
+    """The :class:`VertexRings` whose tiers hold the rows ``groups[t]`` of the padded ``table`` and
+    ``mask`` cut to ``widths[t]``.
+
+    Arguments:
+        table: each vertex's neighbours, padded, (V, k) (:func:`neighbor_table`).
+        mask: the real entries, (V, k).
+        groups: the rows of each tier; every row in exactly one.
+        widths: each tier's width, at most k, at least its rows' degrees.
+
+    Returns:
+        The :class:`VertexRings`."""
+    order = np.empty(table.shape[0], np.int64)
+    order[np.concatenate(groups)] = np.arange(table.shape[0])
     as32 = lambda a: to_device(np.ascontiguousarray(a, dtype=np.int32))  # noqa: E731
     tiers = tuple(VertexTier(as32(g), as32(table[g, :k]), to_device(np.ascontiguousarray(mask[g, :k])))
                   for g, k in zip(groups, widths))
     return VertexRings(tiers, as32(order))
+
+
+def vertex_rings(mesh: Mesh, most: int = RING_TIERS) -> VertexRings:
+    """Build the :class:`VertexRings` of a single mesh (host, numpy; needs concrete connectivity).
+
+    Arguments:
+        mesh: a single mesh (one topology) with concrete (not traced) connectivity.
+        most: the most tiers.
+
+    Returns:
+        Its :class:`VertexRings`."""
+    table, mask, degree = neighbor_table(mesh)
+    rows = np.maximum(degree, 1)                      # an isolated vertex: one masked slot
+    widths = ring_tiers(rows, most, pairs=False)
+    groups = [np.flatnonzero((rows > lower) & (rows <= k)) for lower, k in zip([0, *widths[:-1]], widths)]
+    return tiered_rings(table, mask, groups, widths)
 
 
 def rings_where_concrete(mesh: Mesh, rings: VertexRings | None) -> VertexRings | None:

@@ -41,6 +41,8 @@ surface (:mod:`jaxmesh.tune.patches`), and only the choice runs on the whole
 mesh; the noise law is read on the whole mesh.  The patches' rim (the vertices
 next to the rest of the mesh) is held at the pilot's positions through the
 search paths' iterations (``pin_rim``).
+**Padding.**  The search mesh is padded to a ladder of sizes (:mod:`jaxmesh.tune.ladder`), so that the
+programs compiled for one mesh serve every mesh whose sizes round alike; the estimates are unchanged.
 Measurements and the alternatives tried: the denoising guide.
 """
 
@@ -65,9 +67,9 @@ from ..mesh import Mesh, to_device
 from ..transforms import far_vertices
 from .blend import (BLEND_DRAWS, BLEND_SALT, BLEND_SIZE, SNAPSHOT_FACTORS, best_mixture, check_snapshots,
                     snapshot_rows, tilt_gram, worth_blending)
-from .heldout import (HELD_OUT_MIN_FACES, feature_faces, held_out_inputs, held_out_split, measured_faces,
-                      stratum_weights)
+from .heldout import held_out_estimate
 from .impulsive import estimate_impulsive_noise, read_after_repair
+from .ladder import SEARCH_LADDER, pad_search
 from .noise_level import (BlindTuningWarning, blind_caveats, estimate_noise, estimate_tangential_noise,
                           noise_sigma)
 from .auto_result import AutoResult, Component, Ranked
@@ -125,7 +127,8 @@ def _counted(nu, core):
 
 def _check(noisy: Mesh, candidates: Sequence[Candidate], paths: Sequence[SearchPath], draws, a, noise_model,
            blend_draws=0, blend_size=2, snapshots=(),
-           search_vertices=None, antithetic=False, race_keep=None, pin_rim=True, second_pilot=False) -> None:
+           search_vertices=None, antithetic=False, race_keep=None, pin_rim=True, second_pilot=False,
+           ladder=None) -> None:
     from ..denoise import METHODS
 
     if not isinstance(noisy, Mesh):
@@ -165,6 +168,9 @@ def _check(noisy: Mesh, candidates: Sequence[Candidate], paths: Sequence[SearchP
     for name, value in (("antithetic", antithetic), ("pin_rim", pin_rim), ("second_pilot", second_pilot)):
         if not isinstance(value, bool):
             raise ValueError(f"{name} must be True or False, got {value!r}")
+    if ladder is not None and (isinstance(ladder, bool) or not isinstance(ladder, (int, float))
+                               or not (1 < ladder < np.inf)):
+        raise ValueError(f"ladder must be None or a finite number > 1, got {ladder!r}")
     if race_keep is not None and (isinstance(race_keep, bool) or not isinstance(race_keep, int) or race_keep < 1):
         raise ValueError(f"race_keep must be None or an int >= 1, got {race_keep!r}")
 
@@ -175,17 +181,16 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
                     blend_draws: int = BLEND_DRAWS, blend_size: int = BLEND_SIZE,
                     snapshots: Sequence[float] = SNAPSHOT_FACTORS, a: float = 0.5, key=0,
                     search_vertices: int | None = SEARCH_VERTICES, antithetic: bool = False,
-                    race_keep: int | None = RACE_KEEP, pin_rim: bool = True, second_pilot: bool = False) -> AutoResult:
-    """Pick the candidate with the least recorrupted normal-error estimate
-    (module docstring) and denoise ``noisy`` with it, blind.
+                    race_keep: int | None = RACE_KEEP, pin_rim: bool = True, second_pilot: bool = False,
+                    ladder: float | None = SEARCH_LADDER) -> AutoResult:
+    """Pick the candidate with the least recorrupted normal-error estimate (module docstring), blind.
 
     Arguments:
         noisy: the mesh to denoise (single).
         sigma: the noise standard deviation in mesh units (default: estimated).
         candidates: the fixed candidates (method, parameters).
         impulsive_candidates: added to ``candidates`` when the noise law is impulsive.
-        paths: the families also searched over their iteration count (default: Taubin and
-            the bilateral normal filter's local iterative scheme; ``()`` for none).
+        paths: the families also searched over their iteration count (``()`` for none).
         noise_model: the recorruption's noise law: ``"auto"`` (impulsive when detected, else
             Gaussian with the noise within the surface estimated, capped at σ), ``"normal"``
             (Gaussian along the normals), ``"isotropic"`` (Gaussian, σ in every direction) or
@@ -213,12 +218,14 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
         second_pilot: after the race, pick the search paths' counts again under the race winner's
             output as the pilot, leaders at new counts joining the others on the blend's draws
             (module docstring, *Racing*; with ``blend_draws`` > 0; measured: the denoising guide).
+        ladder: pad the search mesh to this ladder of sizes (:mod:`jaxmesh.tune.ladder`; the same
+            estimates, fewer compiles); ``None``: unpadded (as is the search under impulsive noise).
 
     Returns:
         An :class:`AutoResult`: the method and parameters chosen (or the blend), the
         denoised mesh, the table of estimated risks."""
-    _check(noisy, list(candidates) + list(impulsive_candidates), paths, draws, a, noise_model, blend_draws,
-           blend_size, snapshots, search_vertices, antithetic, race_keep, pin_rim, second_pilot)
+    _check(noisy, [*candidates, *impulsive_candidates], paths, draws, a, noise_model, blend_draws, blend_size,
+           snapshots, search_vertices, antithetic, race_keep, pin_rim, second_pilot, ladder)
     clock = [time.perf_counter()]
     host = HostMesh(noisy)
     law = _noise_law(host, sigma, noise_model)
@@ -227,11 +234,12 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
         return _unchanged(noisy, clock[1] - clock[0])
     if law["law"] == "impulsive":
         candidates = list(candidates) + [c for c in impulsive_candidates if c not in candidates]
-    search, s_vertex, core, rim = _search_mesh(host, law["vertex_sigma"], search_vertices, key, pin_rim)
+    search, s_vertex, core, rim, real = _search_mesh(host, law, search_vertices, key, pin_rim, ladder)
     clock.append(time.perf_counter())
     impulsive = (law["fraction"], law["sigma"]) if law["law"] == "impulsive" else None
     ranked = _rank(search, core, mean_edge_length(noisy), candidates, paths, s_vertex, law["tangential"], draws,
-                   blend_draws, blend_size, snapshots, a, key, antithetic, race_keep, impulsive, rim, second_pilot)
+                   blend_draws, blend_size, snapshots, a, key, antithetic, race_keep, impulsive, rim, second_pilot,
+                   real)
     components, risk, noisy_risk, table, estimator = ranked
     clock.append(time.perf_counter())
     y = noisy.vertices
@@ -246,21 +254,25 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
     blind_caveats(noisy, law["sigma"], law["estimated"], risk / noisy_risk if noisy_risk > 0 else np.inf)
     return AutoResult(method, params, noisy.with_vertices(out), law["sigma"], law["estimated"], law["tangential"],
                       risk, noisy_risk, bool(risk < noisy_risk), table, components, law["law"], law["fraction"],
-                      search.mesh.num_vertices, seconds, estimator, draws)
+                      real, seconds, estimator, draws)
 
 
-def _search_mesh(host: HostMesh, s_vertex, search_vertices: int | None, key, pin_rim: bool) -> tuple:
-    """The mesh the candidates are ranked on (module docstring, *Large meshes*): (its host mesh, the
-    noise level of each of its vertices (or one σ), the faces that count or None for all, the vertices
-    held through the search paths' iterations or None)."""
-    noisy = host.mesh
-    if search_vertices is None or noisy.num_vertices <= PATCH_FACTOR * search_vertices:
-        return host, s_vertex, None, None
-    seed = int(jax.random.randint(library_key(key, PATCH_STREAM), (), 0, np.iinfo(np.int32).max))
-    patches = sample_patches(noisy, search_vertices, seed=seed)
-    s_vertex = s_vertex if np.ndim(s_vertex) == 0 else np.asarray(s_vertex)[patches.vertices]
-    rim = patches.rim if pin_rim and patches.rim.any() else None
-    return HostMesh(patches.mesh), s_vertex, patches.core_faces, rim
+def _search_mesh(host: HostMesh, law: dict, search_vertices: int | None, key, pin_rim: bool, ladder) -> tuple:
+    """The mesh the candidates are ranked on (module docstring, *Large meshes*, *Padding*): (its host mesh,
+    the noise level of each of its vertices (or one σ), the faces that count or None for all, the vertices
+    held through the search paths' iterations or None, its real vertex count)."""
+    noisy, s_vertex = host.mesh, law["vertex_sigma"]
+    search, core, rim = host, None, None
+    if search_vertices is not None and noisy.num_vertices > PATCH_FACTOR * search_vertices:
+        seed = int(jax.random.randint(library_key(key, PATCH_STREAM), (), 0, np.iinfo(np.int32).max))
+        patches = sample_patches(noisy, search_vertices, seed=seed)
+        s_vertex = s_vertex if np.ndim(s_vertex) == 0 else np.asarray(s_vertex)[patches.vertices]
+        search, core = HostMesh(patches.mesh), patches.core_faces
+        rim = patches.rim if pin_rim and patches.rim.any() else None
+    real = search.mesh.num_vertices
+    if ladder is not None and law["law"] == "gaussian":
+        search, core, rim = pad_search(search, core, rim, ladder)
+    return search, s_vertex, core, rim, real
 
 
 def _unchanged(noisy: Mesh, seconds: float) -> AutoResult:
@@ -296,32 +308,14 @@ def _recorrupted_pair(y, z, a):
     return y[None] + a * z, y[None] - z / a
 
 
-def _held_out(noisy: Mesh, pilot: Mesh, nu_pilot, n, ell, core, auxes: dict, impulsive: tuple, key):
-    """The held-out estimate's face normals (zero off the measured faces), its draws and the
-    measured faces' count (:mod:`jaxmesh.tune.heldout`), or None where too few faces are measured."""
-    y = noisy.vertices
-    repaired = run_setting(noisy, y, "impulse_repair", {}, auxes["impulse_repair"])
-    untouched, displaced = held_out_split(noisy, (noisy.with_vertices(repaired), pilot), float(ell))
-    measured = measured_faces(noisy, untouched) & core
-    if measured.sum() < HELD_OUT_MIN_FACES:
-        return None
-    weights = stratum_weights(feature_faces(noisy, nu_pilot), measured, core)
-    nu = face_normals(noisy) * jnp.asarray(np.sqrt(weights), noisy.dtype)[:, None]     # ‖A_f‖² weighted by w_f
-    fraction, sigma = impulsive
-
-    def draw(count: int, salt: int = 0):
-        inputs = held_out_inputs(noisy, untouched, displaced, repaired, n, sigma, fraction, count, key, salt)
-        return inputs, jnp.broadcast_to(y, inputs.shape)
-    return nu, draw, int(measured.sum())
-
-
 def _rank(host: HostMesh, core, ell, candidates, paths, s_vertex, s_t, draws, blend_draws, blend_size, snapshots, a,
-          key, antithetic=False, race_keep=None, impulsive=None, rim=None, second_pilot=False) -> tuple:
+          key, antithetic=False, race_keep=None, impulsive=None, rim=None, second_pilot=False, vertices=None) -> tuple:
     """The search of :func:`choose_denoiser` on ``host``'s mesh (the whole mesh or its patches, where only
     the faces of ``core`` count): (components, risk, doing nothing's risk, table), risks per counted face.
     ``impulsive``: (p̂, σ̂₁) to rank by the held-out estimate where it measures enough faces; ``rim``:
     the vertices held at the pilot's positions through the search paths' iterations, or None;
-    ``second_pilot``: the paths' counts picked again under the race winner's output."""
+    ``second_pilot``: the paths' counts picked again under the race winner's output; ``vertices``: the
+    real ones (the rest padding, :mod:`jaxmesh.tune.ladder`), None for all."""
     noisy = host.mesh
     y = noisy.vertices
     methods = ({c.method for c in candidates} | {"guided_normal"} | _path_methods(paths)
@@ -331,7 +325,7 @@ def _rank(host: HostMesh, core, ell, candidates, paths, s_vertex, s_t, draws, bl
     nu, n = _pilot_normals(pilot)
     pin = None if rim is None else (jnp.asarray(rim), pilot.vertices)
     counted = np.ones(noisy.num_faces, bool) if core is None else np.asarray(core, bool)
-    held = _held_out(noisy, pilot, nu, n, ell, counted, auxes, impulsive, key) if impulsive else None
+    held = held_out_estimate(noisy, pilot, nu, n, ell, counted, auxes, impulsive, key) if impulsive else None
     if held is not None:
         nu, draw, count = held
         inputs, targets = draw(draws)
@@ -342,7 +336,8 @@ def _rank(host: HostMesh, core, ell, candidates, paths, s_vertex, s_t, draws, bl
 
         def draw(count: int, salt: int = 0, normals=None):      # normals: (ν, n) of another pilot
             nu_, n_ = (nu, n) if normals is None else normals
-            zs = recorruptions(noisy, nu_, n_, ell, s_vertex, s_t, count, key, salt=salt, antithetic=antithetic)
+            zs = recorruptions(noisy, nu_, n_, ell, s_vertex, s_t, count, key, salt=salt, antithetic=antithetic,
+                               vertices=vertices)
             return (*_recorrupted_pair(y, zs[0], a), zs[1])
         inputs, targets, trace = draw(draws)
         constant, nothing = (1 + 1 / a**2) * trace, (1 + a**2) * trace

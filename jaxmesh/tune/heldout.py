@@ -57,12 +57,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._private import HELD_OUT_STREAM, library_key
-from ..geometry import vertex_normals
+from ..geometry import face_normals, vertex_normals
 from ..mesh import Mesh
 
 __all__ = ["HELD_OUT_TOLERANCE", "DISPLACED_FACTOR", "HELD_OUT_MIN_FACES", "FEATURE_ANGLE", "STRATUM_MIN_FACES",
            "normal_residuals", "held_out_split", "measured_faces", "feature_faces", "stratum_weights",
-           "held_out_inputs"]
+           "held_out_inputs", "held_out_estimate"]
 
 #: τ, in mean edge lengths: a vertex this close to a reference fit along its normal is read as untouched
 HELD_OUT_TOLERANCE = 0.05
@@ -209,3 +209,40 @@ def _inputs(k, y, untouched, displaced, repaired, n, sigma, fraction, back, draw
     put_back = displaced[None] & jax.random.bernoulli(k_back, back, shape)
     moved = y[None] + jnp.where(hit, xi, 0.0)[..., None] * n[None]
     return jnp.where(put_back[..., None], repaired[None], moved)
+
+
+def held_out_estimate(noisy: Mesh, pilot: Mesh, nu_pilot, n, ell, core, auxes: dict, impulsive: tuple, key):
+    """What :func:`~jaxmesh.tune.choose_denoiser` ranks by under impulsive noise: the face normals
+    (zero off the measured faces, ‖A_f‖² weighted by the strata's w_f), a function of (count, salt)
+    giving that many draws (inputs, targets), and the measured faces' count; None where fewer than
+    ``HELD_OUT_MIN_FACES`` faces are measured.
+
+    Arguments:
+        noisy: the mesh ranked on (single).
+        pilot: the pilot's denoised mesh.
+        nu_pilot: the pilot's face normals, (F, 3).
+        n: the pilot's vertex normals, (V, 3).
+        ell: the mean edge length ℓ̄.
+        core: the faces that count, (F,) bool.
+        auxes: the methods' prepared arrays (``impulse_repair``'s among them).
+        impulsive: (p̂, σ̂₁), the law read.
+        key: the key (or int seed) of the draws.
+
+    Returns:
+        (ν, draw, count) or None."""
+    from .race import run_setting
+
+    y = noisy.vertices
+    repaired = run_setting(noisy, y, "impulse_repair", {}, auxes["impulse_repair"])
+    untouched, displaced = held_out_split(noisy, (noisy.with_vertices(repaired), pilot), float(ell))
+    measured = measured_faces(noisy, untouched) & core
+    if measured.sum() < HELD_OUT_MIN_FACES:
+        return None
+    weights = stratum_weights(feature_faces(noisy, nu_pilot), measured, core)
+    nu = face_normals(noisy) * jnp.asarray(np.sqrt(weights), noisy.dtype)[:, None]
+    fraction, sigma = impulsive
+
+    def draw(count: int, salt: int = 0):
+        inputs = held_out_inputs(noisy, untouched, displaced, repaired, n, sigma, fraction, count, key, salt)
+        return inputs, jnp.broadcast_to(y, inputs.shape)
+    return nu, draw, int(measured.sum())

@@ -71,7 +71,7 @@ def edge_tilt(mesh: Mesh, nu: Float[Array, "F 3"], ell, u: Float[Array, "*batch 
 
 
 def recorruptions(noisy: Mesh, nu, n, ell, s, s_t: float, draws: int, key, salt: int = 0,
-                  antithetic: bool = False):
+                  antithetic: bool = False, vertices: int | None = None):
     """``draws`` fields z ~ N(0, Σ_i = s_i² n_i n_iᵀ + s_t² (I − n_i n_iᵀ)) and the trace
     tr(AᵀAΣ)/F of the module docstring (each edge difference sees its two vertices).
     With ``antithetic`` the fields are ⌈draws/2⌉ independent ones, each followed by its
@@ -88,25 +88,30 @@ def recorruptions(noisy: Mesh, nu, n, ell, s, s_t: float, draws: int, key, salt:
         key: the key (or int seed) of the draws.
         salt: nonzero draws an independent set.
         antithetic: draw in (z, −z) pairs.
+        vertices: draw on the first ``vertices`` vertices, z = 0 on the others (the padding of
+            :mod:`jaxmesh.tune.ladder`: the draws are then those of the unpadded mesh); None: all.
 
     Returns:
         (z (draws, V, 3), tr(AᵀAΣ)/F)."""
     k = library_key(key, RECORRUPTION_STREAM, salt)
     s_v = jnp.asarray(np.broadcast_to(np.asarray(s, dtype=np.float64), (noisy.num_vertices,)), noisy.dtype)
-    zs = _fields(k, s_v, n, np.asarray(s_t, noisy.dtype), draws, antithetic)
+    real = noisy.num_vertices if vertices is None else int(vertices)
+    zs = _fields(k, s_v, n, np.asarray(s_t, noisy.dtype), draws, antithetic, real)
     return zs, float(_trace(noisy, nu, n, s_v, np.asarray(s_t, noisy.dtype), ell))
 
 
-@stored_jit(static_argnames=("draws", "antithetic"))
-def _fields(k, s_v, n, s_t, draws: int, antithetic: bool):
-    """The fields z of :func:`recorruptions`, (draws, V, 3), in one program."""
+@stored_jit(static_argnames=("draws", "antithetic", "real"))
+def _fields(k, s_v, n, s_t, draws: int, antithetic: bool, real: int):
+    """The fields z of :func:`recorruptions`, (draws, V, 3), in one program: drawn on the first
+    ``real`` vertices, zero on the others."""
     fresh = (draws + 1) // 2 if antithetic else draws
-    zs = s_v[None, :, None] * jax.random.normal(k, (fresh, s_v.shape[0], 1), s_v.dtype) * n[None]
-    xi = jax.random.normal(jax.random.fold_in(k, 1), (fresh, s_v.shape[0], 3), s_v.dtype)
+    s_v, n, extra = s_v[:real], n[:real], s_v.shape[0] - real
+    zs = s_v[None, :, None] * jax.random.normal(k, (fresh, real, 1), s_v.dtype) * n[None]
+    xi = jax.random.normal(jax.random.fold_in(k, 1), (fresh, real, 3), s_v.dtype)
     zs = zs + s_t * (xi - jnp.sum(xi * n[None], axis=-1, keepdims=True) * n[None])    # + 0 exactly when s_t = 0
     if antithetic:
         zs = jnp.stack([zs, -zs], axis=1).reshape(2 * fresh, *zs.shape[1:])[:draws]   # z_0, −z_0, z_1, −z_1, …
-    return zs
+    return jnp.pad(zs, ((0, 0), (0, extra), (0, 0)))
 
 
 @stored_jit
