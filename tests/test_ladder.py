@@ -15,7 +15,7 @@ from jaxmesh.geometry import face_normals, mean_edge_length, vertex_normals
 from jaxmesh.hashing.attacks import simplify
 from jaxmesh.host import HostMesh
 from jaxmesh.tune import Candidate, SearchPath, choose_denoiser
-from jaxmesh.tune.ladder import _tiers, ladder_shape, pad_search, table_width
+from jaxmesh.tune.ladder import SEARCH_LADDER, _tiers, ladder_shape, pad_search, table_width
 from jaxmesh.tune.race import run_setting
 from jaxmesh.tune.recorrupt import recorruptions
 
@@ -103,12 +103,12 @@ def test_recorruptions_on_the_real_vertices_are_the_unpadded_draws(noisy):
 
 
 def test_the_padded_search_makes_the_unpadded_choice(noisy):
-    """choose_denoiser on the padded mesh (the default) and unpadded: the same table of settings, estimates
+    """choose_denoiser on the padded mesh and unpadded (the default): the same table of settings, estimates
     equal to rounding, the same choice and output; the result reports the real vertex count."""
     kw = dict(candidates=[Candidate("guided_normal", {"sigma_r": r}) for r in (0.2, 0.45)],
               paths=(SearchPath("taubin", ({"lam": 0.5, "mu": -0.53}, {"lam": 0.3, "mu": -0.31}), (), 12),),
               noise_model="normal")
-    padded, plain = choose_denoiser(noisy, **kw), choose_denoiser(noisy, ladder=None, **kw)
+    padded, plain = choose_denoiser(noisy, ladder=SEARCH_LADDER, **kw), choose_denoiser(noisy, **kw)
     assert [r[:2] for r in padded.table] == [r[:2] for r in plain.table]
     np.testing.assert_allclose([r[2] for r in padded.table], [r[2] for r in plain.table], rtol=1e-4)
     assert (padded.method, padded.params) == (plain.method, plain.params)

@@ -41,8 +41,8 @@ surface (:mod:`jaxmesh.tune.patches`), and only the choice runs on the whole
 mesh; the noise law is read on the whole mesh.  The patches' rim (the vertices
 next to the rest of the mesh) is held at the pilot's positions through the
 search paths' iterations (``pin_rim``).
-**Padding.**  The search mesh is padded to a ladder of sizes (:mod:`jaxmesh.tune.ladder`), so that the
-programs compiled for one mesh serve every mesh whose sizes round alike; the estimates are unchanged.
+**Padding.**  With ``ladder`` the search mesh is padded to a ladder of sizes (:mod:`jaxmesh.tune.ladder`), so
+that the programs compiled for one mesh serve every mesh whose sizes round alike; the estimates are unchanged.
 Measurements and the alternatives tried: the denoising guide.
 """
 
@@ -182,7 +182,7 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
                     snapshots: Sequence[float] = SNAPSHOT_FACTORS, a: float = 0.5, key=0,
                     search_vertices: int | None = SEARCH_VERTICES, antithetic: bool = False,
                     race_keep: int | None = RACE_KEEP, pin_rim: bool = True, second_pilot: bool = False,
-                    ladder: float | None = SEARCH_LADDER) -> AutoResult:
+                    ladder: float | None = None) -> AutoResult:
     """Pick the candidate with the least recorrupted normal-error estimate (module docstring), blind.
 
     Arguments:
@@ -218,8 +218,8 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
         second_pilot: after the race, pick the search paths' counts again under the race winner's
             output as the pilot, leaders at new counts joining the others on the blend's draws
             (module docstring, *Racing*; with ``blend_draws`` > 0; measured: the denoising guide).
-        ladder: pad the search mesh to this ladder of sizes (:mod:`jaxmesh.tune.ladder`; the same
-            estimates, fewer compiles); ``None``: unpadded (as is the search under impulsive noise).
+        ladder: pad the search mesh to this ladder of sizes (:mod:`jaxmesh.tune.ladder`, e.g.
+            ``SEARCH_LADDER``; the same estimates); ``None`` (default, measured faster): unpadded.
 
     Returns:
         An :class:`AutoResult`: the method and parameters chosen (or the blend), the
