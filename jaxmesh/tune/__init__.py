@@ -11,6 +11,7 @@ from .auto import (CANDIDATES, IMPULSIVE_CANDIDATES, NOISE_MODELS, PATHS, RACE_K
 from .auto_result import Component, Ranked
 from .impulsive import ImpulsiveNoise, estimate_impulsive_noise
 from .patches import Patches, sample_patches
+from .ladder import SEARCH_LADDER
 from .noise_level import (
     LOW_NOISE,
     NOISE_ESTIMATORS,
@@ -38,6 +39,7 @@ __all__ = [
     "blind_caveats", "BlindTuningWarning", "LOW_NOISE",
     "choose_denoiser", "AutoResult", "Ranked", "Component", "Candidate", "CANDIDATES", "IMPULSIVE_CANDIDATES", "SearchPath", "PATHS",
     "NOISE_MODELS", "RACE_KEEP", "edge_tilt", "estimate_impulsive_noise", "ImpulsiveNoise", "sample_patches", "Patches",
+    "SEARCH_LADDER",
     "OBJECTIVES", "relative_error", "sure_visual_error", "noisy_visual_error_expectation",
     "Coordinate", "search_space",
 ]

@@ -69,7 +69,7 @@ from .blend import (BLEND_DRAWS, BLEND_SALT, BLEND_SIZE, SNAPSHOT_FACTORS, best_
                     snapshot_rows, tilt_gram, worth_blending)
 from .heldout import held_out_estimate
 from .impulsive import estimate_impulsive_noise, read_after_repair
-from .ladder import SEARCH_LADDER, pad_search
+from .ladder import pad_search
 from .noise_level import (BlindTuningWarning, blind_caveats, estimate_noise, estimate_tangential_noise,
                           noise_sigma)
 from .auto_result import AutoResult, Component, Ranked
@@ -219,7 +219,7 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
             output as the pilot, leaders at new counts joining the others on the blend's draws
             (module docstring, *Racing*; with ``blend_draws`` > 0; measured: the denoising guide).
         ladder: pad the search mesh to this ladder of sizes (:mod:`jaxmesh.tune.ladder`, e.g.
-            ``SEARCH_LADDER``; the same estimates); ``None`` (default, measured faster): unpadded.
+            ``jaxmesh.tune.SEARCH_LADDER``; the same estimates); ``None`` (default, measured faster): unpadded.
 
     Returns:
         An :class:`AutoResult`: the method and parameters chosen (or the blend), the

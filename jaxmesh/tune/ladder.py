@@ -26,8 +26,10 @@ and no corner at any vertex, so no real face or vertex sees them.  The chooser
 counts only the real faces (ν_f = 0 on the others) and draws its recorruptions
 on the real vertices, zero on the padding ones (:func:`jaxmesh.tune.recorrupt.recorruptions`),
 so the draws are those of the unpadded search and the estimates agree with it
-up to rounding.  What it costs (the padded rows, the wider tables) and what it
-saves (the compiles of a new size): the denoising guide and the performance page.
+up to rounding.  The padding is off by default (``choose_denoiser(ladder=None)``):
+it makes every search longer (more rows, wider tables), and on the dataset
+benchmark's meshes too few share a shape for the saved compiles to repay it
+(the denoising guide, *Many meshes*).
 """
 
 from __future__ import annotations
