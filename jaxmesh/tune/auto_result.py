@@ -80,11 +80,13 @@ class AutoResult:
         return float(np.degrees(np.sqrt(max(self.risk, 0.0))))
 
     def summary(self) -> dict[str, Any]:
-        """A JSON-ready account of the choice."""
+        """A JSON-ready account of the choice (``estimated_rms_normal_error_deg`` null where the
+        estimate is negative, a noise level read too high: ``risk`` gives it)."""
         return {"method": self.method, "params": self.params, "noise_sigma": self.sigma,
                 "noise_sigma_estimated": self.estimated, "tangential_noise_sigma": self.tangential_sigma,
                 "noise_law": self.noise_law, "noise_fraction": self.fraction,
-                "estimated_rms_normal_error_deg": self.rms_tilt_degrees,
+                "risk": self.risk, "noisy_risk": self.noisy_risk,
+                "estimated_rms_normal_error_deg": self.rms_tilt_degrees if self.risk >= 0 else None,
                 "noisy_rms_normal_error_deg": float(np.degrees(np.sqrt(max(self.noisy_risk, 0.0)))),
                 "improved": self.improved, "search_vertices": self.search_vertices, "seconds": self.seconds,
                 "estimator": self.estimator, "draws": self.draws,

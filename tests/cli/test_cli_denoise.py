@@ -12,7 +12,7 @@ import pytest
 
 import jaxmesh
 from jaxmesh.cli import main
-from conftest import shared_mesh_path, write_dataset, write_pairs
+from conftest import shared_mesh_path, tetrahedron_arrays, write_dataset, write_pairs
 
 
 def test_noise_then_denoise_with_reference(capsys, tmp_path):
@@ -171,7 +171,8 @@ def test_denoise_auto_is_the_default_and_says_what_it_chose(capsys, tmp_path, sm
 @pytest.mark.filterwarnings("ignore:1 isolated vertices:jaxmesh.mesh.MeshWarning")  # small_pair's far vertex
 def test_a_negative_error_estimate_is_reported_as_such_not_as_zero():
     """A risk estimate below 0 (a noise level set too high) printed as 0.00° read as a perfect
-    result; the report says the estimate is negative instead, and prints degrees otherwise."""
+    result; the report says the estimate is negative instead, and prints degrees otherwise; the JSON
+    summary gives null degrees and the signed risk."""
     from types import SimpleNamespace
 
     from jaxmesh.cli._denoise_report import _estimate
@@ -179,6 +180,13 @@ def test_a_negative_error_estimate_is_reported_as_such_not_as_zero():
     assert "negative" in _estimate(SimpleNamespace(risk=-0.25, rms_tilt_degrees=0.0)) and "°" not in _estimate(
         SimpleNamespace(risk=-0.25, rms_tilt_degrees=0.0))
     assert _estimate(SimpleNamespace(risk=1e-3, rms_tilt_degrees=1.81)) == "1.81°"
+    from jaxmesh.tune import AutoResult
+
+    mesh = jaxmesh.Mesh.from_arrays(*tetrahedron_arrays())
+    low, fine = (AutoResult("taubin", {}, mesh, 0.1, True, 0.0, r, 0.04, True, []).summary() for r in (-0.25, 0.01))
+    assert low["estimated_rms_normal_error_deg"] is None and low["risk"] == -0.25
+    assert fine["estimated_rms_normal_error_deg"] == pytest.approx(np.degrees(0.1)) and fine["noisy_risk"] == 0.04
+    assert json.loads(json.dumps(low))["estimated_rms_normal_error_deg"] is None
 
 
 def test_the_default_writes_a_noise_free_mesh_unchanged(capsys, tmp_path):
