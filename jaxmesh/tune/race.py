@@ -83,15 +83,17 @@ def run_setting(mesh: Mesh, x, method: str, params: dict, aux: dict, counted: bo
     return _run(mesh, x, cont, aux, count, pin if counted else None, method, statics)
 
 
-@stored_jit(static_argnames=("method", "statics"))
-def _tilt(mesh: Mesh, noisy_input, target, nu, ell, continuous: dict, aux: dict, count, pin, method: str,
-          statics: tuple):
-    return edge_tilt(mesh, nu, ell, _apply(mesh, noisy_input, continuous, aux, count, pin, method, statics) - target)
+@stored_jit
+def _tilt(mesh: Mesh, denoised, target, nu, ell):
+    """A(f(ŷ) − ỹ), one program for every method (the filter's own is :func:`run_setting`'s)."""
+    return edge_tilt(mesh, nu, ell, denoised - target)
 
 
 def setting_tilt(mesh: Mesh, noisy_input, target, nu, ell, method: str, params: dict, aux: dict,
                  counted: bool = False, pin=None):
-    """T = A(f(ŷ) − ỹ) of one setting on one recorruption (ŷ, ỹ), in one compiled program.
+    """T = A(f(ŷ) − ỹ) of one setting on one recorruption (ŷ, ỹ): the filter's program
+    (:func:`run_setting`, the one that also runs the setting) and the tilt's, shared by every method,
+    so that each filter is compiled once for the search.
 
     Arguments:
         mesh: the mesh (single).
@@ -107,8 +109,7 @@ def setting_tilt(mesh: Mesh, noisy_input, target, nu, ell, method: str, params: 
 
     Returns:
         (F, 3)."""
-    cont, statics, count = _split(method, params, counted)
-    return _tilt(mesh, noisy_input, target, nu, ell, cont, aux, count, pin if counted else None, method, statics)
+    return _tilt(mesh, run_setting(mesh, noisy_input, method, params, aux, counted, pin), target, nu, ell)
 
 
 @dataclasses.dataclass(frozen=True)
