@@ -611,6 +611,26 @@ def test_antithetic_recorruptions_cancel_the_linear_term(sphere):
     assert (pair[0] + pair[1]) / 2 == pytest.approx(expected, rel=1e-9)
 
 
+def test_fewer_recorruptions_are_the_first_of_more(sphere):
+    """The fields of a count are the first fields of any larger count (independent or in antithetic
+    pairs; one program draws them for every count up to FIELD_CAPACITY), under another salt others; the
+    trace does not depend on the count."""
+    from jaxmesh.geometry import face_normals, mean_edge_length, vertex_normals
+    from jaxmesh.tune.recorrupt import FIELD_CAPACITY, recorruptions
+
+    mesh = jaxmesh.add_noise(sphere, 0.2, 4)
+    nu, n, ell = face_normals(sphere), vertex_normals(sphere, "area"), mean_edge_length(mesh)
+    for antithetic in (False, True):
+        few, t_few = recorruptions(mesh, nu, n, ell, 0.01, 0.004, 3, 7, antithetic=antithetic)
+        many, t_many = recorruptions(mesh, nu, n, ell, 0.01, 0.004, FIELD_CAPACITY + 3, 7, antithetic=antithetic)
+        assert few.shape == (3, mesh.num_vertices, 3) and many.shape[0] == FIELD_CAPACITY + 3
+        np.testing.assert_array_equal(np.asarray(many[:3]), np.asarray(few))
+        assert t_few == t_many
+    plain, _ = recorruptions(mesh, nu, n, ell, 0.01, 0.004, 3, 7)
+    other, _ = recorruptions(mesh, nu, n, ell, 0.01, 0.004, 3, 7, salt=1)
+    assert float(jnp.max(jnp.abs(other[0] - plain[0]))) > 1e-3
+
+
 def test_the_noise_model_sets_the_recorruptions_tangential_part():
     b = trimesh.creation.box().subdivide().subdivide().subdivide()
     clean = jaxmesh.Mesh.from_arrays(b.vertices, b.faces).astype(jnp.float64)

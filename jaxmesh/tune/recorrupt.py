@@ -51,7 +51,12 @@ from .._exported import stored_jit
 from .._private import RECORRUPTION_STREAM, dot, library_key, lift, one_program
 from ..mesh import Mesh
 
-__all__ = ["edge_tilt", "recorruptions"]
+__all__ = ["edge_tilt", "recorruptions", "FIELD_CAPACITY"]
+
+#: the fields are drawn in one program for the count rounded up to a multiple of this, and the first
+#: ``draws`` taken: JAX's counter-based random bits make them the fields a program for ``draws`` would
+#: draw, and one program serves the race's draws and the blend's
+FIELD_CAPACITY = 8
 
 
 @one_program
@@ -96,7 +101,8 @@ def recorruptions(noisy: Mesh, nu, n, ell, s, s_t: float, draws: int, key, salt:
     k = library_key(key, RECORRUPTION_STREAM, salt)
     s_v = jnp.asarray(np.broadcast_to(np.asarray(s, dtype=np.float64), (noisy.num_vertices,)), noisy.dtype)
     real = noisy.num_vertices if vertices is None else int(vertices)
-    zs = _fields(k, s_v, n, np.asarray(s_t, noisy.dtype), draws, antithetic, real)
+    capacity = FIELD_CAPACITY * -(-draws // FIELD_CAPACITY)
+    zs = _fields(k, s_v, n, np.asarray(s_t, noisy.dtype), capacity, antithetic, real)[:draws]
     return zs, float(_trace(noisy, nu, n, s_v, np.asarray(s_t, noisy.dtype), ell))
 
 
