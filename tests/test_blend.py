@@ -235,3 +235,22 @@ def test_tilt_gram_matches_a_plain_loop():
                 t = [normal @ (u[b] - u[c]) / ell for u in us]
                 want += np.outer(t, t)
     np.testing.assert_allclose(gram, want, rtol=1e-9)
+
+
+def test_a_row_runs_as_the_race_ran_it():
+    """A setting of a search path at any count runs with its count traced (and the rim held on patches); a
+    fixed candidate of the same method runs whole, as the race ran it, even where its parameters name an
+    iteration count."""
+    from jaxmesh.tune.auto import PATHS, _on_path
+    from jaxmesh.tune.paths import BILATERAL_PATH_FIXED, BILATERAL_PATH_SIGMAS, TAUBIN_LAMS, taubin_mu
+
+    ss, sr = BILATERAL_PATH_SIGMAS[0]
+    on = [Candidate("bilateral_normal", {"sigma_s": ss, "sigma_r": sr, **BILATERAL_PATH_FIXED, "iterations": 7}),
+          Candidate("taubin", {"lam": TAUBIN_LAMS[0], "mu": taubin_mu(TAUBIN_LAMS[0], 0.0), "iterations": 40})]
+    off = [Candidate("bilateral_normal", {"sigma_r": 0.35, "sigma_s": 2.0}),
+           Candidate("bilateral_normal", {"sigma_s": ss, "sigma_r": sr, "iterations": 7}),   # not the path's statics
+           Candidate("taubin", {"lam": TAUBIN_LAMS[0], "mu": -0.9, "iterations": 40}),
+           Candidate("guided_normal", {"sigma_s": ss, "sigma_r": sr, **BILATERAL_PATH_FIXED})]
+    assert [_on_path(c, PATHS) for c in on] == [True, True]
+    assert [_on_path(c, PATHS) for c in off] == [False] * 4
+    assert not _on_path(on[0], ())

@@ -244,9 +244,8 @@ def choose_denoiser(noisy: Mesh, sigma: float | None = None, candidates: Sequenc
     clock.append(time.perf_counter())
     y = noisy.vertices
     auxes = {c.method: host.aux(c.method) for c in components}
-    path_methods = _path_methods(paths)
     runs = concurrent_map(lambda c: jax.block_until_ready(run_setting(noisy, y, c.method, c.params, auxes[c.method],
-                                                                      c.method in path_methods)), components)
+                                                                      _on_path(c, paths))), components)
     out = to_device(sum(c.weight * np.asarray(x) for c, x in zip(components, runs)))     # on the host: no programs
     clock.append(time.perf_counter())
     seconds = dict(zip(("noise_law", "patches", "ranking", "choice"), np.diff(clock).round(3).tolist()))
@@ -284,21 +283,23 @@ def _unchanged(noisy: Mesh, seconds: float) -> AutoResult:
                       {"noise_law": round(seconds, 3), "patches": 0.0, "ranking": 0.0, "choice": 0.0})
 
 
-def _path_methods(paths: Sequence[SearchPath]) -> frozenset:
-    """The methods of the search paths: those run with their count traced (``run_setting(counted=True)``)."""
-    return frozenset(path.method for path in paths)
+def _on_path(row, paths: Sequence[SearchPath]) -> bool:
+    """Whether ``row`` (a method and its parameters) is a setting of one of ``paths`` at some count: run
+    with its count traced (``run_setting(counted=True)``), as the race ran it; a fixed candidate runs whole."""
+    rest = {k: v for k, v in row.params.items() if k != "iterations"}
+    return any(path.method == row.method and rest == {**s, **dict(path.fixed)} for path in paths for s in path.settings)
 
 
 def _tilts(noisy: Mesh, inputs, targets, candidates: Sequence[Candidate], auxes: dict, nu, ell,
-           counted=frozenset(), pin=None) -> list[np.ndarray]:
+           paths=(), pin=None) -> list[np.ndarray]:
     """T = A(f(ŷ_d) − ỹ_d) of every candidate f on every draw (ŷ_d, ỹ_d), one array (D, F, 3) per
-    candidate, the candidates side by side on the host's cores (:mod:`jaxmesh._threads`; the methods
-    in ``counted`` with their count traced, ``pin`` held after each of their iterations).  One mesh
+    candidate, the candidates side by side on the host's cores (:mod:`jaxmesh._threads`; the settings
+    of ``paths`` with their count traced, ``pin`` held after each of their iterations).  One mesh
     per call: batching the draws or the settings into one call ran slower on CPU under the
     ``jaxmesh`` command's XLA flags (:mod:`jaxmesh.compiler`) and compiled a program per batch size."""
     def tilts(c: Candidate) -> np.ndarray:
         return np.stack([np.asarray(setting_tilt(noisy, x, t, nu, ell, c.method, c.params, auxes[c.method],
-                                                 c.method in counted, pin)) for x, t in zip(inputs, targets)])
+                                                 _on_path(c, paths), pin)) for x, t in zip(inputs, targets)])
     return concurrent_map(tilts, candidates)
 
 
@@ -318,7 +319,7 @@ def _rank(host: HostMesh, core, ell, candidates, paths, s_vertex, s_t, draws, bl
     real ones (the rest padding, :mod:`jaxmesh.tune.ladder`), None for all."""
     noisy = host.mesh
     y = noisy.vertices
-    methods = ({c.method for c in candidates} | {"guided_normal"} | _path_methods(paths)
+    methods = ({c.method for c in candidates} | {"guided_normal"} | {path.method for path in paths}
                | ({"impulse_repair"} if impulsive else set()))
     auxes = {m: host.aux(m) for m in methods}
     pilot = noisy.with_vertices(run_setting(noisy, y, "guided_normal", {}, auxes["guided_normal"]))
@@ -347,7 +348,7 @@ def _rank(host: HostMesh, core, ell, candidates, paths, s_vertex, s_t, draws, bl
     second = second_pilot and held is None and bool(blend_draws)
     if second:
         won = table[0]
-        x = run_setting(noisy, y, won.method, won.params, auxes[won.method], won.method in _path_methods(paths), pin)
+        x = run_setting(noisy, y, won.method, won.params, auxes[won.method], _on_path(won, paths), pin)
         nu2, n2 = _pilot_normals(noisy.with_vertices(x))
         nu2 = _counted(nu2, core)
         inputs, targets, trace = draw(draws, SECOND_PILOT_SALT, (nu2, n2))
@@ -357,7 +358,7 @@ def _rank(host: HostMesh, core, ell, candidates, paths, s_vertex, s_t, draws, bl
     if second or (held is None and blend_draws and blend_size > 1 and len(rows) > 1):
         fresh = draw(blend_draws, BLEND_SALT)
         blended = [Candidate(*r[:2]) for r in rows]
-        gram = tilt_gram(np.stack(_tilts(noisy, *fresh[:2], blended, auxes, nu, ell, _path_methods(paths), pin)))
+        gram = tilt_gram(np.stack(_tilts(noisy, *fresh[:2], blended, auxes, nu, ell, paths, pin)))
         winner = int(np.argmin(np.diag(gram))) if second else next(i for i, r in enumerate(rows) if r is table[0])
         if second:
             components = (Component(rows[winner].method, rows[winner].params, 1.0),)
