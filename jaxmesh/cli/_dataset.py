@@ -81,6 +81,10 @@ def run_dataset(args, given: dict) -> int:
         import jax
 
         jax.distributed.initialize(args.coordinator, args.num_processes, args.process_id)
+    if args.search_ladder is not None:
+        if args.method != "auto":
+            raise CLIError("--search-ladder applies to --method auto (the blind choice); drop it or the named method")
+        given = {**given, "ladder": args.search_ladder}
     summary = denoise_files(args.paths, args.out_dir, args.method, given, batch_size=args.batch_size,
                             ladder=args.ladder, overwrite=args.force, suffix=args.suffix, report=args.report, progress=_progress,
                             reference=args.reference, tune_on=args.tune_on, pack=args.pack)

@@ -54,6 +54,10 @@ def configure(p) -> None:
                    help=f"--method auto: on a mesh of more than {PATCH_FACTOR:g}N vertices, rank the candidates on "
                         f"patches holding about N vertices and run the choice on the whole mesh (default "
                         f"{SEARCH_VERTICES}); 'all': rank on the whole mesh")
+    p.add_argument("--search-ladder", type=_search_ladder, default=None, metavar="R",
+                   help="--method auto: rank on the search mesh padded to a ladder of sizes R apart (e.g. 1.19), "
+                        "so that meshes of one rung share the compiled search; the same choice (default: off, "
+                        "measured faster on varied meshes)")
     selection_arguments(p)
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     view_argument(p, "the input and the result (and --reference, colouring both by the distance to it)")
@@ -73,6 +77,17 @@ def _search_vertices(text: str) -> int | None:
         value = -1
     if value < PATCH_COUNT:
         raise argparse.ArgumentTypeError(f"expected an integer >= {PATCH_COUNT} or 'all', got {text!r}")
+    return value
+
+
+def _search_ladder(text: str) -> float:
+    """--search-ladder: a finite number > 1."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not 1 < value < float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a number > 1 (the ratio between padded sizes), got {text!r}")
     return value
 
 
@@ -121,7 +136,8 @@ def run(args) -> int:
         keep, where = input_attributes(args.input, out), selection_weights(args, mesh)
         start = time.perf_counter()
         choice, caveats = with_caveats(choose_denoiser, mesh, sigma=args.noise_sigma,
-                                       noise_model=args.noise_model or "auto", search_vertices=args.search_vertices)
+                                       noise_model=args.noise_model or "auto", search_vertices=args.search_vertices,
+                                       ladder=args.search_ladder)
         if where is not None:
             choice = dataclasses.replace(choice, mesh=hold(mesh, choice.mesh, where))
         save(choice.mesh, out, overwrite=args.force, attributes=keep)
@@ -129,8 +145,10 @@ def run(args) -> int:
         return report_auto(args, label, out, mesh, reference, choice, caveats, time.perf_counter() - start)
     if args.noise_model is not None:
         raise CLIError("--noise-model applies to --method auto (the blind choice); drop it or the named method")
-    if args.search_vertices != SEARCH_VERTICES:
-        raise CLIError("--search-vertices applies to --method auto (the blind choice); drop it or the named method")
+    for flag, given_ in (("--search-vertices", args.search_vertices != SEARCH_VERTICES),
+                         ("--search-ladder", args.search_ladder is not None)):
+        if given_:
+            raise CLIError(f"{flag} applies to --method auto (the blind choice); drop it or the named method")
     if args.raw_units and (args.tune or "auto" in given.values()):
         raise CLIError("tuning runs in the unit-diagonal frame; drop --raw-units")
     label, mesh, reference, out = _load_pair(args)

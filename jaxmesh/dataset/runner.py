@@ -68,8 +68,11 @@ def _check(method: str, params: dict, suffix: str | None) -> str:
     from ..denoise import METHODS, as_method
 
     if method == "auto":
-        if params:
-            raise ValueError("method 'auto' chooses its own parameters; give none")
+        if set(params) - {"ladder"}:
+            raise ValueError("method 'auto' chooses its own parameters; give none (but the search's 'ladder')")
+        from ..tune.ladder import check_ladder
+
+        check_ladder(params.get("ladder"))
     else:
         m = as_method(method)
         if METHODS.get(m.name) is not m:
@@ -131,7 +134,7 @@ def _run_single(mesh, method: str, params: dict, record: dict) -> Outcome:
             return Outcome(denoise_in_unit_frame(mesh, method, **params))
         from ..tune import choose_denoiser
 
-        choice = choose_denoiser(mesh)
+        choice = choose_denoiser(mesh, ladder=params.get("ladder"))
         record.update(chosen=choice.method, params=choice.params)
         if choice.method == "blend":
             record["components"] = [{"method": m, "params": p, "weight": w} for m, p, w in choice.components]
@@ -154,7 +157,8 @@ def denoise_files(inputs: Sequence[str | Path], out_dir: str | Path, method: str
         inputs: files, directories and glob patterns (:func:`expand_inputs`).
         out_dir: the output folder (same file names).
         method: a registered method (``"auto"`` tunes per mesh).
-        params: the method's parameters; a continuous one may be ``"auto"``.
+        params: the method's parameters; a continuous one may be ``"auto"``.  With ``"auto"``, only
+            ``{"ladder": R}``: the search mesh padded to that ladder (:func:`~jaxmesh.tune.choose_denoiser`).
         batch_size: meshes per compiled call (default :func:`~jaxmesh.dataset.plan.default_batch_size`:
             1 on CPU, 16 on an accelerator).
         ladder: the ratio between padded sizes (larger: fewer compiles, more padding).

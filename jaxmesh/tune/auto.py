@@ -69,7 +69,7 @@ from .blend import (BLEND_DRAWS, BLEND_SALT, BLEND_SIZE, SNAPSHOT_FACTORS, best_
                     snapshot_rows, tilt_gram, worth_blending)
 from .heldout import held_out_estimate
 from .impulsive import estimate_impulsive_noise, read_after_repair
-from .ladder import pad_search
+from .ladder import check_ladder, pad_search
 from .noise_level import (BlindTuningWarning, blind_caveats, estimate_noise, estimate_tangential_noise,
                           noise_sigma)
 from .auto_result import AutoResult, Component, Ranked
@@ -168,9 +168,7 @@ def _check(noisy: Mesh, candidates: Sequence[Candidate], paths: Sequence[SearchP
     for name, value in (("antithetic", antithetic), ("pin_rim", pin_rim), ("second_pilot", second_pilot)):
         if not isinstance(value, bool):
             raise ValueError(f"{name} must be True or False, got {value!r}")
-    if ladder is not None and (isinstance(ladder, bool) or not isinstance(ladder, (int, float))
-                               or not (1 < ladder < np.inf)):
-        raise ValueError(f"ladder must be None or a finite number > 1, got {ladder!r}")
+    check_ladder(ladder)
     if race_keep is not None and (isinstance(race_keep, bool) or not isinstance(race_keep, int) or race_keep < 1):
         raise ValueError(f"race_keep must be None or an int >= 1, got {race_keep!r}")
 

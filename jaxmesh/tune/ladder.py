@@ -46,7 +46,7 @@ from ..denoise.vertex_rings import VertexRings, neighbor_table, tiered_rings, ve
 from ..host import HostMesh, aux_key
 from ..mesh import Mesh, to_device
 
-__all__ = ["SEARCH_LADDER", "WIDTHS", "FACE_TIER_WIDTHS", "VERTEX_TIER_WIDTHS", "TIER_FRACTION", "table_width",
+__all__ = ["SEARCH_LADDER", "check_ladder", "WIDTHS", "FACE_TIER_WIDTHS", "VERTEX_TIER_WIDTHS", "TIER_FRACTION", "table_width",
            "ladder_shape", "padded_vertex_rings", "padded_face_graph", "pad_search"]
 
 #: the ratio between the padded sizes of the search mesh (2^¼: at most 19% padding)
@@ -59,6 +59,20 @@ FACE_TIER_WIDTHS = (13, 16)
 VERTEX_TIER_WIDTHS = (6, 8)
 #: each tier but the narrowest holds a multiple of ⌈rows / TIER_FRACTION⌉ rows
 TIER_FRACTION = 8
+
+
+def check_ladder(ladder) -> None:
+    """Refuse a ladder that is not None or a finite number > 1 (the ``ladder`` of
+    :func:`~jaxmesh.tune.choose_denoiser`), with a ValueError naming it.
+
+    Arguments:
+        ladder: the value given.
+
+    Returns:
+        None."""
+    if ladder is not None and (isinstance(ladder, bool) or not isinstance(ladder, (int, float))
+                               or not 1 < ladder < math.inf):
+        raise ValueError(f"ladder must be None or a finite number > 1, got {ladder!r}")
 
 
 def table_width(k: int) -> int:

@@ -1,11 +1,13 @@
 """`jaxmesh noise` and `jaxmesh denoise`, on one mesh and on a dataset (--out-dir):
 output, exit codes, errors, and files equal to what the library computes."""
 
+import contextlib
 import json
 import re
 import socket
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -154,7 +156,7 @@ def test_denoise_auto_is_the_default_and_says_what_it_chose(capsys, tmp_path, sm
     s = json.loads(capsys.readouterr().out)
     [(args, kwargs, want)] = calls
     # every other argument at the library's default
-    assert kwargs == {"sigma": None, "noise_model": "auto", "search_vertices": SEARCH_VERTICES}
+    assert kwargs == {"sigma": None, "noise_model": "auto", "search_vertices": SEARCH_VERTICES, "ladder": None}
     np.testing.assert_array_equal(args[0].vertices, jaxmesh.load(noisy).vertices)
     assert s["method"] == want.method and s["params"] == want.params
     assert s["auto"]["improved"] and len(s["auto"]["candidates"]) == len(CANDIDATES) + sum(
@@ -257,6 +259,46 @@ def test_denoise_auto_passes_the_noise_model_on(capsys, tmp_path, small_pair, mo
     assert main(["denoise", noisy, str(tmp_path / "f.ply"), "--noise-model", "impulsive", "--json"]) == 0
     s = json.loads(capsys.readouterr().out)
     assert s["auto"]["noise_law"] == "impulsive" and s["auto"]["tangential_noise_sigma"] == 0.0
+
+
+@pytest.mark.filterwarnings("ignore:1 isolated vertices:jaxmesh.mesh.MeshWarning")  # small_pair's far vertex
+def test_the_search_ladder_reaches_the_chooser_and_makes_the_same_choice(capsys, tmp_path, small_pair, monkeypatch):
+    """--search-ladder R pads the search (a small one here) and writes the file the unpadded search
+    writes; with --out-dir it reaches every mesh's chooser; a bad ratio, a named method or another
+    parameter beside it are refused with the flag named."""
+    import functools
+
+    import jaxmesh.cli.denoise as cli_denoise
+    import jaxmesh.tune as tune
+    from jaxmesh.tune import Candidate, choose_denoiser
+
+    seen = []
+
+    def small(*args, **kw):
+        seen.append(kw.get("ladder"))
+        return choose_denoiser(*args, candidates=[Candidate("guided_normal", {"sigma_r": 0.3})],
+                               paths=(tune.PATHS[0],), blend_draws=0, **kw)
+    monkeypatch.setattr(cli_denoise, "choose_denoiser", small)
+    monkeypatch.setattr(tune, "choose_denoiser", small)          # the dataset runner's
+    noisy, _ = small_pair
+    assert main(["denoise", noisy, str(tmp_path / "p.ply"), "--search-ladder", "1.19", "--json"]) == 0
+    padded = json.loads(capsys.readouterr().out)
+    assert main(["denoise", noisy, str(tmp_path / "u.ply"), "--json"]) == 0
+    plain = json.loads(capsys.readouterr().out)
+    assert seen == [1.19, None] and padded["auto"]["candidates"][0]["params"] == plain["auto"]["candidates"][0]["params"]
+    np.testing.assert_allclose(jaxmesh.load(tmp_path / "p.ply").vertices, jaxmesh.load(tmp_path / "u.ply").vertices,
+                               atol=1e-6)
+    assert main(["denoise", noisy, "--out-dir", str(tmp_path / "d"), "--search-ladder", "1.19"]) == 0
+    assert seen[-1] == 1.19 and (tmp_path / "d" / Path(noisy).name).exists()
+    capsys.readouterr()
+    for argv, message in ((["--search-ladder", "1"], "expected a number > 1"),
+                          (["--search-ladder", "inf"], "expected a number > 1"),
+                          (["--method", "taubin", "--search-ladder", "1.2"], "--search-ladder applies to --method auto")):
+        with pytest.raises(SystemExit) if "expected" in message else contextlib.nullcontext():
+            assert main(["denoise", noisy, str(tmp_path / "b.ply"), *argv]) == 1
+        assert message in capsys.readouterr().err
+    assert main(["denoise", noisy, "--out-dir", str(tmp_path / "e"), "--search-ladder", "1.2", "--lam", "0.3"]) == 1
+    assert "chooses its own parameters" in capsys.readouterr().err
 
 
 def test_denoise_auto_says_when_it_ranked_on_patches(capsys, tmp_path, monkeypatch):
